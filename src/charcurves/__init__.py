@@ -1,0 +1,59 @@
+"""charcurves: interpretable equation discovery with characteristic curves.
+
+State a structural template such as ``x'' + f1(x') + f2(x) = F(t)``; each unknown univariate
+function (a characteristic curve) is learned from measured x(t), F(t) by a neural network,
+a basis expansion or symbolic regression, under priors such as odd/even symmetry.
+
+Importing the package does no work: heavy modules (torch, scipy, matplotlib) load on first use.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+
+__version__ = "0.1.0"
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())
+
+# public name -> module that defines it (loaded on first attribute access)
+_LAZY = {
+    "Trajectory": "charcurves.data",
+    "corrupt": "charcurves.data",
+    "add_noise": "charcurves.data",
+    "estimate_derivatives": "charcurves.data",
+    "get_system": "charcurves.systems",
+    "SeparableTemplate": "charcurves.templates",
+    "CharacteristicCurves": "charcurves.fitting",
+    "FittedModel": "charcurves.fitting",
+    "fit": "charcurves.fitting",
+    "load_model": "charcurves.fitting",
+    "TrainingPreset": "charcurves.fitting",
+    "PRESETS": "charcurves.fitting",
+    "METHODS": "charcurves.fitting",
+    "NeuralCurve": "charcurves.curves",
+    "curve_rmse": "charcurves.metrics",
+    "curve_errors": "charcurves.metrics",
+    "plot_curves": "charcurves.report",
+    "CharCurvesError": "charcurves._errors",
+    "DataError": "charcurves._errors",
+    "ConfigError": "charcurves._errors",
+    "ModelFileError": "charcurves._errors",
+    "NotFittedError": "charcurves._errors",
+    "SimulationError": "charcurves._errors",
+    "IdentifiabilityError": "charcurves._errors",
+}
+
+__all__ = sorted(_LAZY) + ["__version__"]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'charcurves' has no attribute {name!r}")
+
+
+def __dir__():
+    return __all__

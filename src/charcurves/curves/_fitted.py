@@ -1,0 +1,248 @@
+"""Fitted curves: callables on the original (unscaled) argument, serialisable without pickle."""
+
+from __future__ import annotations
+
+import abc
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+
+from .._errors import ModelFileError
+from ._neural import NeuralCurve
+
+__all__ = ["FittedCurve", "NeuralFittedCurve", "BasisFittedCurve", "curve_from_spec"]
+
+
+class FittedCurve(abc.ABC):
+    """A learned univariate curve ``f(z)`` with an additive gauge shift.
+
+    Attributes
+    ----------
+    name : str          e.g. "f1"
+    argument : str      the argument as written in the equation, e.g. "x'"
+    domain : (float, float)  the training range of the argument
+    shift : float       constant added to the raw representation (gauge)
+    """
+
+    kind: ClassVar[str]
+
+    def __init__(self, name: str, argument: str, domain: tuple[float, float], shift: float = 0.0):
+        self.name = name
+        self.argument = argument
+        self.domain = (float(domain[0]), float(domain[1]))
+        self.shift = float(shift)
+
+    @abc.abstractmethod
+    def raw(self, z: np.ndarray) -> np.ndarray:
+        """The representation's value before the gauge shift."""
+
+    @property
+    @abc.abstractmethod
+    def pinned_at_zero(self) -> bool:
+        """True when the representation forces f(0) = 0 exactly."""
+
+    def __call__(self, z) -> np.ndarray:
+        z = np.asarray(z, dtype=float)
+        return self.raw(z) + self.shift
+
+    def expression(self):
+        """A sympy expression in the symbol ``z`` when the curve is symbolic, else None."""
+        return None
+
+    def grid(self, n: int = 1000) -> np.ndarray:
+        return np.linspace(self.domain[0], self.domain[1], n)
+
+    def components(self) -> dict[str, float]:
+        """Named parts worth reporting (e.g. a jump's height and width)."""
+        return {}
+
+    @abc.abstractmethod
+    def to_spec(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """JSON-able description and named arrays."""
+
+    def _base_spec(self) -> dict[str, Any]:
+        return {
+            "kind": self.kind,
+            "name": self.name,
+            "argument": self.argument,
+            "domain": list(self.domain),
+            "shift": self.shift,
+        }
+
+
+class NeuralFittedCurve(FittedCurve):
+    """A trained neural curve: ``out_scale * mean_m f_net_m(z / in_scale) + shift``.
+
+    ``theta`` holds one row of weights per ensemble member (several starts of the same fit
+    are averaged: it cancels most of the initialisation-dependent part of the error).
+    """
+
+    kind = "neural"
+
+    def __init__(self, name, argument, domain, spec: NeuralCurve, theta: np.ndarray,
+                 in_scale: float, out_scale: float, shift: float = 0.0):
+        super().__init__(name, argument, domain, shift)
+        self.spec = spec
+        self.theta = np.atleast_2d(np.asarray(theta, dtype=np.float64))
+        if self.theta.ndim != 2 or self.theta.shape[1] != spec.n_params:
+            raise ModelFileError(
+                f"curve {name}: weights of shape {self.theta.shape} stored but the network needs {spec.n_params} "
+                "per member; "
+                "the model file is corrupted"
+            )
+        self.in_scale = float(in_scale)
+        self.out_scale = float(out_scale)
+
+    @property
+    def pinned_at_zero(self) -> bool:
+        return self.spec.pinned_at_zero
+
+    def raw(self, z):
+        import torch
+
+        z = np.asarray(z, dtype=np.float64)
+        shape = z.shape
+        with torch.no_grad():
+            th = torch.as_tensor(self.theta, dtype=torch.float64)
+            u = torch.as_tensor(z.reshape(-1) / self.in_scale, dtype=torch.float64)
+            y = self.spec.evaluate(th, u).mean(dim=0).numpy()
+        return (y * self.out_scale).reshape(shape)
+
+    def components(self):
+        sl = self.spec.slices()
+        out = {}
+        if "linear" in sl:
+            out["linear_slope"] = float(self.theta[:, sl["linear"]].mean() * self.out_scale / self.in_scale)
+        if self.spec.jump:
+            out["jump_height"] = float(self.theta[:, sl["jump_height"]].mean() * self.out_scale)
+            out["jump_width"] = float(np.exp(self.theta[:, sl["jump_log_eps"]]).mean() * self.in_scale)
+        out["ensemble_members"] = int(self.theta.shape[0])
+        return out
+
+    def to_spec(self):
+        d = self._base_spec()
+        d.update(
+            network={
+                "hidden": list(self.spec.hidden),
+                "activation": self.spec.activation,
+                "symmetry": self.spec.symmetry,
+                "symmetry_mode": self.spec.symmetry_mode,
+                "linear_term": self.spec.linear_term,
+                "jump": self.spec.jump,
+            },
+            in_scale=self.in_scale,
+            out_scale=self.out_scale,
+        )
+        return d, {f"{self.name}.theta": self.theta}
+
+    @classmethod
+    def from_spec(cls, d, arrays):
+        net = d["network"]
+        spec = NeuralCurve(
+            hidden=tuple(net["hidden"]),
+            activation=net["activation"],
+            symmetry=net["symmetry"],
+            symmetry_mode=net["symmetry_mode"],
+            linear_term=bool(net["linear_term"]),
+            jump=bool(net["jump"]),
+        )
+        key = f"{d['name']}.theta"
+        if key not in arrays:
+            raise ModelFileError(f"the weights of curve {d['name']} are missing from the model file")
+        return cls(d["name"], d["argument"], tuple(d["domain"]), spec, arrays[key],
+                   d["in_scale"], d["out_scale"], d["shift"])
+
+
+class BasisFittedCurve(FittedCurve):
+    """A linear combination of closed-form basis functions of ``z``: ``sum c_j b_j(z) + shift``."""
+
+    kind = "basis"
+
+    def __init__(self, name, argument, domain, basis: list[str], coefficients, shift: float = 0.0):
+        super().__init__(name, argument, domain, shift)
+        import sympy as sp
+
+        self.basis = [str(b) for b in basis]
+        self.coefficients = np.asarray(coefficients, dtype=float).reshape(-1)
+        if self.coefficients.shape[0] != len(self.basis):
+            raise ModelFileError(f"curve {name}: {len(self.basis)} basis functions but "
+                                 f"{self.coefficients.shape[0]} coefficients; the model file is corrupted")
+        z = sp.Symbol("z")
+        self._exprs = [parse_basis_function(b) for b in self.basis]
+        self._funcs = [sp.lambdify(z, e, modules="numpy") for e in self._exprs]
+        self._pinned = all(sp.simplify(e.subs(z, 0)) == 0 for e in self._exprs)
+
+    @property
+    def pinned_at_zero(self) -> bool:
+        return self._pinned
+
+    def raw(self, z):
+        z = np.asarray(z, dtype=float)
+        out = np.zeros_like(z)
+        for c, f in zip(self.coefficients, self._funcs):
+            out = out + c * np.broadcast_to(f(z), z.shape)
+        return out
+
+    def expression(self):
+        import sympy as sp
+
+        expr = sum((sp.Float(c) * e for c, e in zip(self.coefficients, self._exprs)), sp.Integer(0))
+        if self.shift != 0.0:
+            expr = expr + sp.Float(self.shift)
+        return expr
+
+    def to_spec(self):
+        d = self._base_spec()
+        d["basis"] = list(self.basis)
+        return d, {f"{self.name}.coefficients": self.coefficients}
+
+    @classmethod
+    def from_spec(cls, d, arrays):
+        key = f"{d['name']}.coefficients"
+        if key not in arrays:
+            raise ModelFileError(f"the coefficients of curve {d['name']} are missing from the model file")
+        return cls(d["name"], d["argument"], tuple(d["domain"]), d["basis"], arrays[key], d["shift"])
+
+
+_ALLOWED_FUNCS = ("sin", "cos", "tanh", "exp", "log", "sqrt", "sign", "Abs", "atan", "sinh", "cosh", "tan")
+
+
+def parse_basis_function(text: str):
+    """Parse a basis function of ``z`` safely (no code execution): only z, numbers and known functions."""
+    import sympy as sp
+    from sympy.parsing.sympy_parser import parse_expr, standard_transformations
+
+    from .._errors import ConfigError
+
+    if not isinstance(text, str) or not text.strip():
+        raise ConfigError(f"empty basis function {text!r}; write e.g. 'z**3' or 'tanh(50*z)'")
+    if any(tok in text for tok in ("__", "lambda", "import", ";")):
+        raise ConfigError(f"basis function {text!r} is not a plain expression of z")
+    z = sp.Symbol("z")
+    local = {"z": z, **{name: getattr(sp, name) for name in _ALLOWED_FUNCS}, "abs": sp.Abs}
+    try:
+        expr = parse_expr(text, local_dict=local, global_dict={"Integer": sp.Integer, "Float": sp.Float,
+                                                                "Rational": sp.Rational, "Symbol": sp.Symbol},
+                          transformations=standard_transformations, evaluate=True)
+    except Exception as exc:  # sympy raises many types for bad syntax
+        raise ConfigError(f"cannot parse basis function {text!r} ({type(exc).__name__}); "
+                          "write an expression of z such as 'z**3'") from None
+    if not isinstance(expr, sp.Expr):
+        raise ConfigError(f"basis function {text!r} is not an expression of z")
+    extra = expr.free_symbols - {z}
+    if extra:
+        raise ConfigError(
+            f"basis function {text!r} uses {sorted(map(str, extra))}; write it in the curve's argument z only"
+        )
+    return expr
+
+
+_KINDS = {"neural": NeuralFittedCurve, "basis": BasisFittedCurve}
+
+
+def curve_from_spec(d: dict, arrays: dict) -> FittedCurve:
+    kind = d.get("kind")
+    if kind not in _KINDS:
+        raise ModelFileError(f"unknown curve kind {kind!r} in the model file; it may come from a newer charcurves")
+    return _KINDS[kind].from_spec(d, arrays)

@@ -1,0 +1,174 @@
+"""Neural characteristic curves: a network, optional linear and jump parts, and a symmetry prior.
+
+A curve acts on a scaled argument ``u = z / scale`` (no shift, so odd/even stay odd/even) and
+returns values in units of the target scale. It is one composition rule, not a class per variant:
+
+    f(u) = sym[ MLP(u) ] + c_lin * u + mu * tanh(u / eps)
+
+``sym`` is the exact parametrisation (odd: (h(u) - h(-u)) / 2, even: (h(u) + h(-u)) / 2) or
+the identity when the prior is imposed as the paper's penalty. The linear part is dropped for
+even curves and the jump part is odd by construction (Coulomb friction: eps -> 0 is mu*sign).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import torch
+
+from .._errors import ConfigError
+from ._mlp import ACTIVATIONS, BatchedMLP
+
+__all__ = ["NeuralCurve", "SYMMETRIES"]
+
+SYMMETRIES = ("none", "odd", "even")
+
+
+@dataclasses.dataclass(frozen=True)
+class NeuralCurve:
+    """Settings of one neural curve.
+
+    Parameters
+    ----------
+    hidden : tuple of int
+        Hidden layer widths.
+    activation : {"tanh", "relu", "softplus", "gelu", "silu"}
+    symmetry : {"none", "odd", "even"}
+    symmetry_mode : {"exact", "penalty"}
+        Exact parametrisation (default) or the paper's soft penalty ``lambda * L_sym``.
+    linear_term : bool
+        Add a linear part ``c * u`` (skipped for even curves), started from least squares.
+    jump : bool
+        Add ``mu * tanh(u / eps)``, a learned jump at 0 (dry friction).
+    """
+
+    hidden: tuple[int, ...] = (8,)
+    activation: str = "tanh"
+    symmetry: str = "none"
+    symmetry_mode: str = "exact"
+    linear_term: bool = True
+    jump: bool = False
+
+    def __post_init__(self) -> None:
+        if self.symmetry not in SYMMETRIES:
+            raise ConfigError(
+                f"unknown symmetry {self.symmetry!r}; choose one of {', '.join(SYMMETRIES)}"
+            )
+        if self.symmetry_mode not in ("exact", "penalty"):
+            raise ConfigError(
+                f"unknown symmetry mode {self.symmetry_mode!r}; choose 'exact' or 'penalty'"
+            )
+        if self.activation not in ACTIVATIONS:
+            raise ConfigError(
+                f"unknown activation {self.activation!r}; choose one of {', '.join(sorted(ACTIVATIONS))}"
+            )
+        if self.jump and self.symmetry == "even":
+            raise ConfigError("a jump at 0 is odd and cannot be part of an even curve; drop --jump or the even prior")
+        object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
+
+    # ------------------------------------------------------------------ layout
+    @property
+    def mlp(self) -> BatchedMLP:
+        return BatchedMLP(self.hidden, self.activation)
+
+    @property
+    def exact_symmetry(self) -> str:
+        return self.symmetry if self.symmetry_mode == "exact" else "none"
+
+    @property
+    def has_linear(self) -> bool:
+        return self.linear_term and self.exact_symmetry != "even"
+
+    @property
+    def n_params(self) -> int:
+        return self.mlp.n_params + int(self.has_linear) + 2 * int(self.jump)
+
+    @property
+    def pinned_at_zero(self) -> bool:
+        """True when the parametrisation forces f(0) = 0 (exact odd symmetry)."""
+        return self.exact_symmetry == "odd"
+
+    def slices(self) -> dict[str, slice]:
+        n = self.mlp.n_params
+        out = {"mlp": slice(0, n)}
+        if self.has_linear:
+            out["linear"] = slice(n, n + 1)
+            n += 1
+        if self.jump:
+            out["jump_height"] = slice(n, n + 1)
+            out["jump_log_eps"] = slice(n + 1, n + 2)
+        return out
+
+    def init(self, K: int, generator: torch.Generator, dtype=torch.float64) -> torch.Tensor:
+        parts = [self.mlp.init(K, generator, dtype)]
+        if self.has_linear:
+            parts.append(torch.zeros(K, 1, dtype=dtype))
+        if self.jump:
+            parts.append(torch.zeros(K, 1, dtype=dtype))
+            parts.append(torch.full((K, 1), math.log(0.01), dtype=dtype))
+        return torch.cat(parts, dim=1)
+
+    # ------------------------------------------------------------------ evaluation
+    def evaluate(self, theta: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """Curve values ``(K, N)`` at scaled arguments ``u`` (``(K, N)`` or ``(N,)``)."""
+        sl = self.slices()
+        mlp = self.mlp
+        th = theta[:, sl["mlp"]]
+        if u.dim() == 1:
+            u = u.unsqueeze(0).expand(theta.shape[0], -1)
+        sym = self.exact_symmetry
+        if sym == "none":
+            y = mlp.forward(th, u)
+        else:
+            both = mlp.forward(th, torch.cat([u, -u], dim=1))
+            n = u.shape[1]
+            y = 0.5 * (both[:, :n] - both[:, n:]) if sym == "odd" else 0.5 * (both[:, :n] + both[:, n:])
+        if self.has_linear:
+            y = y + theta[:, sl["linear"]] * u
+        if self.jump:
+            mu = theta[:, sl["jump_height"]]
+            eps = torch.exp(theta[:, sl["jump_log_eps"]])
+            y = y + mu * torch.tanh(u / eps)
+        return y
+
+    def evaluate_jacobian(self, theta: torch.Tensor, u: torch.Tensor):
+        """Values ``(K, N)`` and Jacobian ``(K, N, n_params)``."""
+        sl = self.slices()
+        mlp = self.mlp
+        th = theta[:, sl["mlp"]]
+        if u.dim() == 1:
+            u = u.unsqueeze(0).expand(theta.shape[0], -1)
+        sym = self.exact_symmetry
+        if sym == "none":
+            y, J = mlp.forward_jacobian(th, u)
+        else:
+            n = u.shape[1]
+            yb, Jb = mlp.forward_jacobian(th, torch.cat([u, -u], dim=1))
+            s = -1.0 if sym == "odd" else 1.0
+            y = 0.5 * (yb[:, :n] + s * yb[:, n:])
+            J = 0.5 * (Jb[:, :n] + s * Jb[:, n:])
+        cols = [J]
+        if self.has_linear:
+            y = y + theta[:, sl["linear"]] * u
+            cols.append(u.unsqueeze(-1))
+        if self.jump:
+            mu = theta[:, sl["jump_height"]]
+            eps = torch.exp(theta[:, sl["jump_log_eps"]])
+            th_ = torch.tanh(u / eps)
+            y = y + mu * th_
+            cols.append(th_.unsqueeze(-1))
+            # d/d(log eps) of mu*tanh(u/eps) = -mu * sech^2(u/eps) * u/eps
+            cols.append((-mu * (1 - th_ * th_) * u / eps).unsqueeze(-1))
+        return y, torch.cat(cols, dim=2)
+
+    def raw_network(self, theta: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """The network part alone (before the exact symmetry), for the symmetry penalty."""
+        return self.mlp.forward(theta[:, self.slices()["mlp"]], u)
+
+    def raw_network_jacobian(self, theta: torch.Tensor, u: torch.Tensor):
+        y, J = self.mlp.forward_jacobian(theta[:, self.slices()["mlp"]], u)
+        pad = self.n_params - J.shape[2]
+        if pad:
+            J = torch.cat([J, J.new_zeros(J.shape[0], J.shape[1], pad)], dim=2)
+        return y, J

@@ -1,0 +1,17 @@
+"""Measured data: trajectories, noise models and differentiators."""
+
+from ._trajectory import MIN_SAMPLES as MIN_SAMPLES
+from ._trajectory import Trajectory as Trajectory
+from ._noise import add_noise as add_noise
+from ._noise import corrupt as corrupt
+from ._noise import noise_sigma as noise_sigma
+from ._noise import snr_to_eta as snr_to_eta
+from ._differentiate import DIFFERENTIATOR_NAMES as DIFFERENTIATOR_NAMES
+from ._differentiate import Differentiator as Differentiator
+from ._differentiate import FiniteDifference as FiniteDifference
+from ._differentiate import Given as Given
+from ._differentiate import SavitzkyGolay as SavitzkyGolay
+from ._differentiate import SmoothingSpline as SmoothingSpline
+from ._differentiate import Spectral as Spectral
+from ._differentiate import estimate_derivatives as estimate_derivatives
+from ._differentiate import make_differentiator as make_differentiator

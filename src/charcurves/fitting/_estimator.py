@@ -1,0 +1,256 @@
+"""The estimator users meet: a template + curve representation + priors + fitter, named by method."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from .._errors import ConfigError, DataError
+from ..curves._neural import SYMMETRIES, NeuralCurve
+from ..data._trajectory import MIN_SAMPLES, Trajectory
+from ..templates._separable import get_template
+from ._linear import fit_basis, parse_basis_option
+from ._model import FittedModel
+from ._presets import get_preset
+
+__all__ = ["CharacteristicCurves", "METHODS", "parse_symmetry", "fit"]
+
+#: method name -> (representation, symmetry prior applied by default)
+METHODS: dict[str, dict[str, Any]] = {
+    "nn-cc": {"representation": "neural", "symmetry": False},
+    "nn-cc+sym": {"representation": "neural", "symmetry": True},
+    "parametric": {"representation": "basis", "symmetry": False},
+}
+
+
+def parse_symmetry(sym, curve_names=("f1", "f2")) -> dict[str, str]:
+    """``"f1=odd,f2=odd"`` / ``{"f1": "odd"}`` / ``"odd"`` (all curves) -> ``{"f1": "odd", "f2": "odd"}``."""
+    out = {name: "none" for name in curve_names}
+    if sym is None or sym == "":
+        return out
+    if isinstance(sym, str):
+        if "=" not in sym:
+            items = {name: sym.strip() for name in curve_names}
+        else:
+            items = {}
+            for part in sym.split(","):
+                if not part.strip():
+                    continue
+                if "=" not in part:
+                    raise ConfigError(f"symmetry {part.strip()!r} needs the form CURVE=odd|even|none, e.g. f1=odd,f2=odd")
+                k, v = part.split("=", 1)
+                items[k.strip()] = v.strip()
+    elif isinstance(sym, dict):
+        items = {str(k): str(v) for k, v in sym.items()}
+    else:
+        raise ConfigError(f"symmetry must be a string like 'f1=odd,f2=odd' or a dict, got {type(sym).__name__}")
+    for k, v in items.items():
+        if k not in curve_names:
+            raise ConfigError(f"symmetry given for unknown curve {k!r}; the curves are {', '.join(curve_names)}")
+        if v not in SYMMETRIES:
+            raise ConfigError(f"unknown symmetry {v!r} for {k}; choose one of {', '.join(SYMMETRIES)}")
+        out[k] = v
+    return out
+
+
+class CharacteristicCurves:
+    """Identify the characteristic curves of a template from measured records.
+
+    Parameters
+    ----------
+    family : str
+        The template family ("separable": x'' + f1(x') + f2(x) = g F).
+    method : str
+        One of :data:`METHODS` ("nn-cc", "nn-cc+sym", "parametric").
+    symmetry : str or dict, optional
+        Parity priors per curve, e.g. "f1=odd,f2=odd". ``+sym`` methods default to odd curves.
+    free_gain : bool
+        Learn the input gain g (otherwise g = ``gain``).
+    gain : float
+    gauge : {"f2", "f1"}
+        The curve anchored at 0 (fixes the constant the curves can trade).
+    preset : {"default", "paper"} or TrainingPreset
+        Training settings of neural curves.
+    derivatives : str
+        "auto" (given v, a when present, otherwise estimated), "given", "savgol", "spline",
+        "spectral" or "fd".
+    jump : sequence of str
+        Curves that get a learned jump at 0 (dry friction), e.g. ("f1",).
+    basis : str or dict, optional
+        Basis per curve for "parametric", e.g. "f1=z; f2=z, z**3" (z = the curve's argument).
+    exclude_sticking : bool
+        Leave out samples where the mass sticks (x' = 0 over a run): friction is set-valued there.
+    random_state : int
+    threads : int, optional
+        Torch threads during training (None leaves torch's setting).
+    device : str
+        "cpu" or "cuda".
+
+    Examples
+    --------
+    >>> from charcurves.systems import get_system
+    >>> from charcurves.data import corrupt
+    >>> traj = corrupt(get_system("duffing").simulate(), 20, seed=0)
+    >>> model = CharacteristicCurves(method="parametric").fit(traj).model_
+    >>> round(model.curves["f1"].components().get("linear_slope", 0.3), 1)
+    0.3
+    """
+
+    def __init__(self, family: str = "separable", method: str = "nn-cc+sym", *, symmetry=None,
+                 free_gain: bool = False, gain: float = 1.0, gauge: str = "f2", preset="default",
+                 derivatives: str = "auto", jump: Sequence[str] = (), basis=None,
+                 exclude_sticking: bool = True, hidden: Sequence[int] | None = None,
+                 activation: str | None = None, random_state: int = 0, threads: int | None = None,
+                 device: str = "cpu", progress: Callable | None = None):
+        self.family = family
+        self.method = method
+        self.symmetry = symmetry
+        self.free_gain = free_gain
+        self.gain = gain
+        self.gauge = gauge
+        self.preset = preset
+        self.derivatives = derivatives
+        self.jump = jump
+        self.basis = basis
+        self.exclude_sticking = exclude_sticking
+        self.hidden = hidden
+        self.activation = activation
+        self.random_state = random_state
+        self.threads = threads
+        self.device = device
+        self.progress = progress
+
+    # scikit-learn's parameter contract
+    def get_params(self, deep: bool = True) -> dict[str, Any]:
+        import inspect
+
+        names = [p for p in inspect.signature(type(self).__init__).parameters if p != "self"]
+        return {n: getattr(self, n) for n in names}
+
+    def set_params(self, **params) -> CharacteristicCurves:
+        valid = self.get_params()
+        for k, v in params.items():
+            if k not in valid:
+                raise ConfigError(f"unknown parameter {k!r}; valid: {', '.join(valid)}")
+            setattr(self, k, v)
+        return self
+
+    # ------------------------------------------------------------------ configuration
+    def _resolve(self):
+        if self.method not in METHODS:
+            raise ConfigError(f"unknown method {self.method!r}; choose one of {', '.join(METHODS)}")
+        template = get_template(self.family, free_gain=bool(self.free_gain), gain=float(self.gain), gauge=self.gauge)
+        names = template.curve_names
+        spec = METHODS[self.method]
+        sym = parse_symmetry(self.symmetry, names)
+        if spec["symmetry"] and all(v == "none" for v in sym.values()):
+            sym = {n: "odd" for n in names}  # the paper's +sym: odd curves
+        if not spec["symmetry"] and any(v != "none" for v in sym.values()):
+            raise ConfigError(
+                f"method {self.method!r} has no symmetry prior; use {self.method}+sym to impose {self.symmetry!r}"
+                if self.method == "nn-cc" else f"method {self.method!r} does not take a symmetry prior"
+            )
+        jumps = [self.jump] if isinstance(self.jump, str) else list(self.jump or ())
+        jumps = [j.strip() for item in jumps for j in str(item).split(",") if j.strip()]
+        for j in jumps:
+            if j not in names:
+                raise ConfigError(f"--jump names unknown curve {j!r}; the curves are {', '.join(names)}")
+        return template, spec, sym, jumps
+
+    def _prepare(self, traj: Trajectory, sym: dict[str, str], template) -> Trajectory:
+        from ..data._differentiate import estimate_derivatives
+
+        if not isinstance(traj, Trajectory):
+            raise DataError(f"fit expects a Trajectory, got {type(traj).__name__}; build one with Trajectory.from_csv/from_arrays")
+        traj.require_samples(MIN_SAMPLES, f"method {self.method}")
+        method = self.derivatives
+        if method == "given" and not traj.has_derivatives:
+            raise DataError("--derivatives given needs v and a columns in the data; "
+                            "use --derivatives spline|spectral|savgol to estimate them")
+        if not (method in ("auto", "given") and traj.has_derivatives):
+            traj = estimate_derivatives(traj.replace(v=None, a=None), "auto" if method == "given" else method)
+        for name, z in template.arguments_of(traj).items():
+            if sym[name] != "none" and (z.min() >= 0 or z.max() <= 0):
+                raise DataError(
+                    f"a {sym[name]} prior on {name} needs its argument {template.arguments[name]} on both sides of 0, "
+                    f"but the record covers only [{z.min():.3g}, {z.max():.3g}]; drop the prior or give a record "
+                    "that crosses 0"
+                )
+        return traj
+
+    # ------------------------------------------------------------------ fitting
+    def fit(self, traj: Trajectory) -> CharacteristicCurves:
+        """Fit one record; the result is ``self.model_``."""
+        self.model_ = self.fit_many([traj], seeds=[self.random_state])[0]
+        return self
+
+    def fit_many(self, trajectories: Sequence[Trajectory], seeds: Sequence[int] | None = None) -> list[FittedModel]:
+        """Fit many records (noise realisations, SNR levels...) in one batched computation."""
+        template, spec, sym, jumps = self._resolve()
+        trajs = [self._prepare(tr, sym, template) for tr in trajectories]
+        if seeds is None:
+            seeds = [self.random_state + i for i in range(len(trajs))]
+        if spec["representation"] == "basis":
+            basis = parse_basis_option(self.basis, template.curve_names)
+            if jumps:
+                raise ConfigError("--jump applies to neural curves; add tanh(k*z) to the basis for parametric")
+            return [fit_basis(tr, template, basis, method=self.method, exclude_sticking=self.exclude_sticking,
+                              stick_tol=None if self._given(tr) else 0.01) for tr in trajs]
+        from ._neural_fit import fit_neural
+
+        preset = get_preset(self.preset)
+        curves = {
+            name: NeuralCurve(
+                hidden=tuple(self.hidden) if self.hidden else preset.hidden,
+                activation=self.activation or preset.activation,
+                symmetry=sym[name],
+                symmetry_mode=preset.symmetry_mode,
+                linear_term=preset.linear_term,
+                jump=name in jumps,
+            )
+            for name in template.curve_names
+        }
+        given = all(self._given(tr) for tr in trajectories)
+        groups: dict[int, list[int]] = {}
+        for i, tr in enumerate(trajs):
+            groups.setdefault(tr.n_samples, []).append(i)
+        out: list[FittedModel | None] = [None] * len(trajs)
+        for idx in groups.values():
+            models = fit_neural([trajs[i] for i in idx], template, curves, preset, [int(seeds[i]) for i in idx],
+                                method=self.method, exclude_sticking=self.exclude_sticking,
+                                stick_tol=None if given else 0.01, device=self.device, threads=self.threads,
+                                progress=self.progress)
+            for i, m in zip(idx, models):
+                out[i] = m
+        return out  # type: ignore[return-value]
+
+    def _given(self, traj: Trajectory) -> bool:
+        return self.derivatives in ("auto", "given") and traj.has_derivatives
+
+    @property
+    def curves_(self):
+        return self._fitted().curves
+
+    @property
+    def gain_(self) -> float:
+        return self._fitted().gain
+
+    @property
+    def loss_(self) -> float:
+        return self._fitted().loss
+
+    def _fitted(self) -> FittedModel:
+        from .._errors import NotFittedError
+
+        if not hasattr(self, "model_"):
+            raise NotFittedError("this CharacteristicCurves is not fitted yet; call fit(trajectory) first")
+        return self.model_
+
+
+def fit(traj: Trajectory, method: str = "nn-cc+sym", **kwargs) -> FittedModel:
+    """Shortcut: ``CharacteristicCurves(method=method, **kwargs).fit(traj).model_``."""
+    return CharacteristicCurves(method=method, **kwargs).fit(traj).model_
+
+

@@ -1,0 +1,263 @@
+"""One training loop for every neural-curve model: batched Adam, then batched Levenberg-Marquardt.
+
+The problem is linear in the curves: for each model k (of K trained together) and sample n,
+
+    r[k, n] = w[k, n] * ( y[k, n] + sum_i m_i[k, n] * f_i(u_i[k, n]) + b[k] - g[k] * F[k, n] )
+
+with ``y`` the known part of the equation (x''), ``m_i`` per-sample multipliers (1 for the
+separable family), an optional constant ``b`` and gain ``g``. The symmetry penalty, when used,
+adds residuals sqrt(lambda / N_sym) * (f_i(z) -+ f_i(-z)). The loss is the sum of squares, so
+``w = 1/sqrt(N)`` gives the paper's mean-squared error.
+
+Models never interact: Adam is elementwise and LM solves one small system per model, so K
+models trained together equal K models trained one by one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+
+import torch
+
+from ..curves._neural import NeuralCurve
+
+__all__ = ["CurveTerm", "BatchedProblem", "train"]
+
+
+@dataclasses.dataclass
+class CurveTerm:
+    """One curve of the equation: its settings and its (scaled) argument per model."""
+
+    curve: NeuralCurve
+    u: torch.Tensor  # (K, N) scaled arguments
+    multiplier: torch.Tensor | None = None  # (K, N)
+    sym_points: torch.Tensor | None = None  # (K, N_sym) scaled points for the penalty
+
+
+@dataclasses.dataclass
+class BatchedProblem:
+    terms: Sequence[CurveTerm]
+    y: torch.Tensor  # (K, N)
+    F: torch.Tensor  # (K, N)
+    weights: torch.Tensor  # (K, N): 1/sqrt(N_used) for used samples, 0 for excluded ones
+    free_gain: bool = False
+    gain: float = 1.0
+    bias: bool = False
+    lambda_sym: float = 0.0
+    weight_decay: float = 0.0  # on network weights only (linear, jump, gain, constant stay free)
+
+    def __post_init__(self) -> None:
+        self.offsets = []
+        o = 0
+        for term in self.terms:
+            self.offsets.append(o)
+            o += term.curve.n_params
+        self.gain_index = o if self.free_gain else None
+        o += int(self.free_gain)
+        self.bias_index = o if self.bias else None
+        o += int(self.bias)
+        self.n_params = o
+        decay = torch.zeros(o, dtype=torch.bool)
+        for i, term in enumerate(self.terms):
+            sl = term.curve.slices()["mlp"]
+            decay[self.offsets[i] + sl.start : self.offsets[i] + sl.stop] = True
+        self.decay_index = torch.nonzero(decay).flatten() if self.weight_decay > 0 else None
+        self.penalised = [
+            i
+            for i, t in enumerate(self.terms)
+            if t.curve.symmetry != "none" and t.curve.symmetry_mode == "penalty" and self.lambda_sym > 0
+        ]
+
+    @property
+    def K(self) -> int:
+        return self.y.shape[0]
+
+    def block(self, theta: torch.Tensor, i: int) -> torch.Tensor:
+        o = self.offsets[i]
+        return theta[:, o : o + self.terms[i].curve.n_params]
+
+    def gain_of(self, theta: torch.Tensor) -> torch.Tensor:
+        if self.free_gain:
+            return theta[:, self.gain_index : self.gain_index + 1]
+        return torch.full((theta.shape[0], 1), float(self.gain), dtype=theta.dtype, device=theta.device)
+
+    def bias_of(self, theta: torch.Tensor) -> torch.Tensor:
+        if self.bias:
+            return theta[:, self.bias_index : self.bias_index + 1]
+        return torch.zeros(theta.shape[0], 1, dtype=theta.dtype, device=theta.device)
+
+    # ------------------------------------------------------------------ residuals
+    def residuals(self, theta: torch.Tensor) -> torch.Tensor:
+        pred = self.y + self.bias_of(theta) - self.gain_of(theta) * self.F
+        for i, term in enumerate(self.terms):
+            f = term.curve.evaluate(self.block(theta, i), term.u)
+            pred = pred + (f if term.multiplier is None else term.multiplier * f)
+        parts = [self.weights * pred]
+        for i in self.penalised:
+            parts.append(self._sym_residual(theta, i))
+        if self.decay_index is not None:
+            parts.append(math.sqrt(self.weight_decay) * theta[:, self.decay_index])
+        return torch.cat(parts, dim=1) if len(parts) > 1 else parts[0]
+
+    def _sym_residual(self, theta, i):
+        term = self.terms[i]
+        z = term.sym_points
+        both = term.curve.evaluate(self.block(theta, i), torch.cat([z, -z], dim=1))
+        n = z.shape[1]
+        s = -1.0 if term.curve.symmetry == "odd" else 1.0
+        return math.sqrt(self.lambda_sym / n) * (both[:, :n] - s * both[:, n:])
+
+    def residuals_jacobian(self, theta: torch.Tensor):
+        K, N = self.y.shape
+        J = theta.new_zeros(K, N, self.n_params)
+        pred = self.y + self.bias_of(theta) - self.gain_of(theta) * self.F
+        for i, term in enumerate(self.terms):
+            f, Ji = term.curve.evaluate_jacobian(self.block(theta, i), term.u)
+            if term.multiplier is not None:
+                f = term.multiplier * f
+                Ji = term.multiplier.unsqueeze(-1) * Ji
+            pred = pred + f
+            o = self.offsets[i]
+            J[:, :, o : o + term.curve.n_params] = Ji
+        if self.free_gain:
+            J[:, :, self.gain_index] = -self.F
+        if self.bias:
+            J[:, :, self.bias_index] = 1.0
+        r = [self.weights * pred]
+        J = [self.weights.unsqueeze(-1) * J]
+        for i in self.penalised:
+            term = self.terms[i]
+            z = term.sym_points
+            n = z.shape[1]
+            f, Ji = term.curve.evaluate_jacobian(self.block(theta, i), torch.cat([z, -z], dim=1))
+            s = -1.0 if term.curve.symmetry == "odd" else 1.0
+            c = math.sqrt(self.lambda_sym / n)
+            Jp = theta.new_zeros(K, n, self.n_params)
+            o = self.offsets[i]
+            Jp[:, :, o : o + term.curve.n_params] = c * (Ji[:, :n] - s * Ji[:, n:])
+            r.append(c * (f[:, :n] - s * f[:, n:]))
+            J.append(Jp)
+        if self.decay_index is not None:
+            m = self.decay_index.numel()
+            Jd = theta.new_zeros(K, m, self.n_params)
+            Jd[:, torch.arange(m), self.decay_index] = math.sqrt(self.weight_decay)
+            r.append(math.sqrt(self.weight_decay) * theta[:, self.decay_index])
+            J.append(Jd)
+        return torch.cat(r, dim=1), torch.cat(J, dim=1)
+
+    def loss(self, theta: torch.Tensor) -> torch.Tensor:
+        """Total loss per model, ``(K,)``."""
+        return self.residuals(theta).pow(2).sum(dim=1)
+
+    def data_loss(self, theta: torch.Tensor) -> torch.Tensor:
+        return self.residuals(theta)[:, : self.y.shape[1]].pow(2).sum(dim=1)
+
+
+@dataclasses.dataclass
+class TrainingLog:
+    adam_steps: int = 0
+    lm_iterations: int = 0
+    history: list = dataclasses.field(default_factory=list)  # (phase, step, mean loss)
+    stopped_by: str = ""
+    interrupted: bool = False
+
+
+def _adam(problem, theta, steps, lr, stop_loss, log, progress, holder, check_every=100):
+    theta = theta.clone().requires_grad_(True)
+    opt = torch.optim.Adam([theta], lr=lr)
+    done = torch.zeros(theta.shape[0], dtype=torch.bool)
+    for step in range(steps):
+        opt.zero_grad(set_to_none=True)
+        per_model = problem.loss(theta)
+        per_model.sum().backward()
+        if step % check_every == 0 or step == steps - 1:
+            with torch.no_grad():
+                done = per_model.detach() < stop_loss
+            log.history.append(("adam", step, float(per_model.detach().mean())))
+            holder["theta"] = theta.detach().clone()
+            if progress is not None:
+                progress("adam", step, steps, float(per_model.detach().mean()))
+            if bool(done.all()):
+                log.stopped_by = "stop_loss"
+                break
+        if done.any():
+            # models already below the stop loss keep their weights (as separate runs would)
+            theta.grad[done] = 0.0
+        opt.step()
+        log.adam_steps = step + 1
+    holder["theta"] = theta.detach()
+    return theta.detach()
+
+
+def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress, holder):
+    K, P = theta.shape
+    r, J = problem.residuals_jacobian(theta)
+    cost = r.pow(2).sum(1)
+    mu = torch.full((K,), 1e-3, dtype=theta.dtype, device=theta.device)
+    active = cost > stop_loss
+    stalls = torch.zeros(K, dtype=torch.long, device=theta.device)
+    eye = torch.eye(P, dtype=theta.dtype, device=theta.device)
+    for it in range(max_iter):
+        if not bool(active.any()):
+            break
+        JtJ = J.transpose(1, 2) @ J
+        g = (J.transpose(1, 2) @ r.unsqueeze(-1)).squeeze(-1)
+        diag = torch.diagonal(JtJ, dim1=1, dim2=2)
+        # Marquardt scaling with a floor so directions the data do not see stay damped
+        scale = diag + 1e-9 * diag.max(dim=1, keepdim=True).values + 1e-12
+        A = JtJ + (mu.unsqueeze(-1) * scale).unsqueeze(-1) * eye
+        L, info = torch.linalg.cholesky_ex(A)
+        step = -torch.cholesky_solve(g.unsqueeze(-1), L).squeeze(-1)
+        ok_solve = info == 0
+        step = torch.where(ok_solve.unsqueeze(-1) & active.unsqueeze(-1), step, torch.zeros_like(step))
+        trial = theta + step
+        r_new, J_new = problem.residuals_jacobian(trial)
+        cost_new = r_new.pow(2).sum(1)
+        accept = active & ok_solve & torch.isfinite(cost_new) & (cost_new < cost)
+        rel = torch.where(accept, (cost - cost_new) / cost.clamp_min(1e-300), torch.zeros_like(cost))
+        theta = torch.where(accept.unsqueeze(-1), trial, theta)
+        r = torch.where(accept.unsqueeze(-1), r_new, r)
+        J = torch.where(accept.view(K, 1, 1), J_new, J)
+        cost = torch.where(accept, cost_new, cost)
+        holder["theta"] = theta
+        mu = torch.where(accept, (mu / 3).clamp_min(1e-12), (mu * 4).clamp_max(1e12))
+        stalls = torch.where(accept & (rel < tol), stalls + 1, torch.where(accept, 0, stalls))
+        finished = (stalls >= 3) | (mu >= 1e12) | (cost < stop_loss)
+        active = active & ~finished
+        log.lm_iterations = it + 1
+        if it % 10 == 0:
+            log.history.append(("lm", it, float(cost.mean())))
+            if progress is not None:
+                progress("lm", it, max_iter, float(cost.mean()))
+    log.stopped_by = log.stopped_by or ("stall" if not bool(active.any()) else "max_iter")
+    return theta
+
+
+def train(
+    problem: BatchedProblem,
+    theta0: torch.Tensor,
+    *,
+    adam_steps: int,
+    adam_lr: float,
+    lm_max_iter: int,
+    lm_tol: float,
+    stop_loss: float,
+    progress: Callable | None = None,
+) -> tuple[torch.Tensor, TrainingLog]:
+    """Train ``theta0`` (``(K, P)``) on ``problem``; Ctrl-C keeps the best weights so far."""
+    log = TrainingLog()
+    holder = {"theta": theta0}
+    try:
+        if adam_steps > 0:
+            _adam(problem, holder["theta"], adam_steps, adam_lr, stop_loss, log, progress, holder)
+        if lm_max_iter > 0:
+            with torch.no_grad():
+                _levenberg_marquardt(
+                    problem, holder["theta"], lm_max_iter, lm_tol, stop_loss, log, progress, holder
+                )
+    except KeyboardInterrupt:
+        log.interrupted = True
+        log.stopped_by = "interrupted"
+    return holder["theta"].detach(), log

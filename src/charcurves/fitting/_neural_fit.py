@@ -1,0 +1,229 @@
+"""NN-CC: neural curves on a template, trained in one batched pass for one or many records."""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from .._errors import ConfigError, DataError
+from ..curves._fitted import NeuralFittedCurve
+from ..curves._neural import NeuralCurve
+from ..data._trajectory import Trajectory
+from ..templates._separable import SeparableTemplate, apply_gauge, sticking_mask
+from ._model import FittedModel
+from ._presets import TrainingPreset
+
+__all__ = ["fit_neural", "torch_threads"]
+
+
+@contextlib.contextmanager
+def torch_threads(n: int | None):
+    """Run with ``n`` torch threads and restore the previous count afterwards."""
+    import torch
+
+    if n is None:
+        yield
+        return
+    old = torch.get_num_threads()
+    torch.set_num_threads(max(1, int(n)))
+    try:
+        yield
+    finally:
+        torch.set_num_threads(old)
+
+
+def fit_neural(
+    trajectories: Sequence[Trajectory],
+    template: SeparableTemplate,
+    curves: dict[str, NeuralCurve],
+    preset: TrainingPreset,
+    seeds: Sequence[int],
+    *,
+    method: str = "nn-cc",
+    exclude_sticking: bool = True,
+    stick_tol: float | None = None,
+    weight_decay: float = 0.0,
+    device: str = "cpu",
+    threads: int | None = None,
+    progress: Callable | None = None,
+) -> list[FittedModel]:
+    """Fit K records (equal lengths) as one batched computation; returns K fitted models.
+
+    Each model's initialisation comes from its own seed, so K models trained together equal
+    the same models trained one by one.
+    """
+    import torch
+
+    if len(trajectories) != len(seeds):
+        raise ConfigError("give one seed per trajectory")
+    n = {tr.n_samples for tr in trajectories}
+    if len(n) != 1:
+        raise DataError("records fitted in one batch must have the same number of samples; fit them separately")
+    dtype = torch.float64 if preset.dtype == "float64" else torch.float32
+    names = template.curve_names
+    R = preset.n_starts
+    t_start = time.perf_counter()
+
+    # ---------------------------------------------------------------- data, masks and scales
+    args, ys, Fs, masks, scales_in, scale_out, n_stuck = [], [], [], [], [], [], []
+    for tr in trajectories:
+        template.check_excitation(tr)
+        a = template.arguments_of(tr)
+        mask = np.ones(tr.n_samples, dtype=bool)
+        if exclude_sticking:
+            stuck = sticking_mask(tr, rel_tol=stick_tol)
+            mask &= ~stuck
+            n_stuck.append(int(stuck.sum()))
+        else:
+            n_stuck.append(0)
+        if mask.sum() < 10:
+            raise DataError("fewer than 10 samples remain after removing sticking phases; give a longer record")
+        args.append(a)
+        ys.append(np.asarray(tr.a))
+        Fs.append(np.asarray(tr.F))
+        masks.append(mask)
+        s_in = {k: (float(np.max(np.abs(a[k]))) if preset.scale_inputs else 1.0) for k in names}
+        scales_in.append(s_in)
+        g0 = template.gain
+        s_out = float(np.std((ys[-1] - g0 * Fs[-1])[mask])) if preset.scale_output else 1.0
+        scale_out.append(s_out if s_out > 0 else 1.0)
+
+    K = len(trajectories)
+    KR = K * R
+    rep = lambda arr_list: np.repeat(np.stack(arr_list), R, axis=0)  # noqa: E731
+    T = lambda arr: torch.as_tensor(arr, dtype=dtype, device=device)  # noqa: E731
+    so = np.repeat(np.array(scale_out), R)[:, None]
+    y = T(rep(ys) / so)
+    F = T(rep(Fs) / so)
+    w_np = rep([m / np.sqrt(m.sum()) for m in masks])
+    w = T(w_np)
+
+    from ._gradient import BatchedProblem, CurveTerm, train
+
+    terms = []
+    for name in names:
+        spec = curves[name]
+        z = rep([a[name] for a in args]) / np.repeat([s[name] for s in scales_in], R)[:, None]
+        sym_pts = None
+        if spec.symmetry != "none" and spec.symmetry_mode == "penalty":
+            zs = [np.linspace(a[name].min(), a[name].max(), preset.n_sym) / s[name] for a, s in zip(args, scales_in)]
+            sym_pts = T(np.repeat(np.stack(zs), R, axis=0))
+        terms.append(CurveTerm(spec, T(z), None, sym_pts))
+    bias = all(curves[nm].pinned_at_zero for nm in names)
+    problem = BatchedProblem(terms, y, F, w, free_gain=template.free_gain, gain=template.gain, bias=bias,
+                             lambda_sym=preset.lambda_sym, weight_decay=weight_decay)
+
+    # ---------------------------------------------------------------- initialisation (per model seed)
+    thetas = []
+    for seed in seeds:
+        for r in range(R):
+            gen = torch.Generator().manual_seed(int(seed) * 7919 + r)
+            parts = [curves[nm].init(1, gen, dtype) for nm in names]
+            if template.free_gain:
+                parts.append(torch.full((1, 1), float(template.gain), dtype=dtype))
+            if bias:
+                parts.append(torch.zeros(1, 1, dtype=dtype))
+            thetas.append(torch.cat(parts, dim=1))
+    theta0 = torch.cat(thetas, dim=0).to(device)
+    if preset.warm_start:
+        theta0 = _warm_start(problem, theta0)
+
+    with torch_threads(threads):
+        theta, log = train(problem, theta0, adam_steps=preset.adam_steps, adam_lr=preset.adam_lr,
+                           lm_max_iter=preset.lm_max_iter, lm_tol=preset.lm_tol, stop_loss=preset.stop_loss,
+                           progress=progress)
+        with torch.no_grad():
+            data_loss = problem.data_loss(theta).double().cpu().numpy()
+            total_loss = problem.loss(theta).double().cpu().numpy()
+    elapsed = time.perf_counter() - t_start
+    theta = theta.double().cpu()
+
+    # ---------------------------------------------------------------- assemble fitted models
+    models = []
+    for k in range(K):
+        losses = total_loss[k * R:(k + 1) * R]
+        best = int(np.argmin(losses))
+        if preset.combine == "mean":
+            members = np.flatnonzero(losses <= losses[best] * (1.0 + preset.combine_tol))
+        else:
+            members = np.array([best])
+        rows = theta[k * R + members]
+        s_out = scale_out[k]
+        fitted = {}
+        for i, name in enumerate(names):
+            z = args[k][name]
+            fitted[name] = NeuralFittedCurve(
+                name, template.arguments[name], (float(z.min()), float(z.max())), curves[name],
+                problem.block(rows, i).numpy(), scales_in[k][name], s_out,
+            )
+        b = float(problem.bias_of(rows).mean()) * s_out
+        g = float(problem.gain_of(rows).mean())
+        raw0 = {nm: float(fitted[nm].raw(np.array([0.0]))[0]) for nm in names}
+        pinned = {nm: fitted[nm].pinned_at_zero for nm in names}
+        shifts, offset = apply_gauge(raw0, pinned, b, template.gauge, names)
+        for nm in names:
+            fitted[nm].shift = shifts[nm]
+        info = {
+            "preset": preset.name,
+            "preset_settings": preset.to_dict(),
+            "seed": int(seeds[k]),
+            "n_starts": R,
+            "best_start": best,
+            "ensemble_members": int(members.size),
+            "adam_steps": log.adam_steps,
+            "lm_iterations": log.lm_iterations,
+            "stopped_by": log.stopped_by,
+            "interrupted": log.interrupted,
+            "n_samples": int(masks[k].size),
+            "n_fitted_samples": int(masks[k].sum()),
+            "n_sticking_samples": n_stuck[k],
+            "total_loss": float(total_loss[k * R + best] * s_out**2),
+            "train_seconds": elapsed / K,
+            "batch_size": K,
+            "weight_decay": weight_decay,
+        }
+        model = FittedModel(template, method, fitted, g, offset, 0.0, info)
+        resid = model.force_residual(trajectories[k])[masks[k]]
+        model.loss = float(np.mean(resid**2))  # the combined model's own data loss
+        models.append(model)
+    return models
+
+
+def _warm_start(problem, theta0):
+    """Least squares for the parts that enter linearly (linear terms, jump heights, gain, constant)."""
+    import torch
+
+    with torch.no_grad():
+        N = problem.y.shape[1]
+        cols, idx = [], []
+        for i, term in enumerate(problem.terms):
+            sl = term.curve.slices()
+            o = problem.offsets[i]
+            m = term.multiplier
+            if "linear" in sl:
+                cols.append(term.u if m is None else term.u * m)
+                idx.append(o + sl["linear"].start)
+            if "jump_height" in sl:
+                eps = torch.exp(theta0[:, o + sl["jump_log_eps"].start]).unsqueeze(1)
+                c = torch.tanh(term.u / eps)
+                cols.append(c if m is None else c * m)
+                idx.append(o + sl["jump_height"].start)
+        if problem.free_gain:
+            cols.append(-problem.F)
+            idx.append(problem.gain_index)
+        if problem.bias:
+            cols.append(torch.ones_like(problem.y))
+            idx.append(problem.bias_index)
+        if not cols:
+            return theta0
+        theta = theta0.clone()
+        for j in idx:  # the fit below replaces these parts, so start them from 0
+            theta[:, j] = 0.0
+        base = problem.residuals(theta)[:, :N]  # weighted residual of the rest
+        A = torch.stack(cols, dim=2) * problem.weights.unsqueeze(-1)
+        sol = torch.linalg.lstsq(A, -base.unsqueeze(-1)).solution.squeeze(-1)
+        theta[:, idx] = sol.to(theta.dtype)
+        return theta

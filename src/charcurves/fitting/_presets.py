@@ -1,0 +1,128 @@
+"""Training presets: frozen settings objects handed to the one training loop.
+
+``default`` was chosen by measurement (see docs/training-defaults.md); ``paper`` is the exact
+protocol of the paper and its authors' scripts, kept for faithful reproduction.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from .._errors import ConfigError
+
+__all__ = ["TrainingPreset", "PRESETS", "get_preset"]
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainingPreset:
+    """How neural curves are built and trained.
+
+    Parameters
+    ----------
+    name : str
+    hidden, activation, linear_term : network shape of every curve (see NeuralCurve)
+    symmetry_mode : {"exact", "penalty"}
+    lambda_sym, n_sym : weight and number of points of the symmetry penalty (paper: 10, 1000)
+    dtype : {"float64", "float32"}
+    scale_inputs : bool
+        Divide each curve's argument by its largest magnitude (keeps parity, conditions the fit).
+    scale_output : bool
+        Divide the regression target by its standard deviation.
+    warm_start : bool
+        Start linear parts, the gain, the constant and jump heights from a least-squares fit.
+    adam_steps, adam_lr : first-order phase (full batch)
+    lm_max_iter, lm_tol : Levenberg-Marquardt refinement; stops when the relative decrease of
+        the loss stays below ``lm_tol`` (a stall) or after ``lm_max_iter`` iterations
+    stop_loss : float
+        Stop when the loss falls below this (the paper: 1e-7).
+    n_starts : int
+        Random initialisations per model, trained together.
+    combine : {"mean", "best"}
+        "best" keeps the start with the lowest loss; "mean" averages the starts whose loss is
+        within ``combine_tol`` (relative) of the lowest (starts stuck in a worse local minimum
+        are dropped), which cancels much of the initialisation-dependent error.
+    combine_tol : float
+    """
+
+    name: str
+    hidden: tuple[int, ...] = (8,)
+    activation: str = "tanh"
+    linear_term: bool = True
+    symmetry_mode: str = "exact"
+    lambda_sym: float = 10.0
+    n_sym: int = 1000
+    dtype: str = "float64"
+    scale_inputs: bool = True
+    scale_output: bool = True
+    warm_start: bool = True
+    adam_steps: int = 300
+    adam_lr: float = 1e-2
+    lm_max_iter: int = 150
+    lm_tol: float = 1e-7
+    stop_loss: float = 1e-7
+    n_starts: int = 6
+    combine: str = "mean"
+    combine_tol: float = 0.02
+
+    def __post_init__(self) -> None:
+        if self.dtype not in ("float64", "float32"):
+            raise ConfigError(f"dtype must be 'float64' or 'float32', got {self.dtype!r}")
+        for key in ("adam_steps", "lm_max_iter", "n_sym", "n_starts"):
+            if int(getattr(self, key)) < 0:
+                raise ConfigError(f"{key} must be >= 0, got {getattr(self, key)}")
+        if self.combine not in ("mean", "best"):
+            raise ConfigError(f"combine must be 'mean' or 'best', got {self.combine!r}")
+        if self.n_starts < 1:
+            raise ConfigError("n_starts must be at least 1")
+        if self.adam_steps == 0 and self.lm_max_iter == 0:
+            raise ConfigError("a preset needs adam_steps > 0 or lm_max_iter > 0, otherwise nothing is trained")
+        object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
+
+    def replace(self, **changes) -> TrainingPreset:
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["hidden"] = list(self.hidden)
+        return d
+
+
+PRESETS: dict[str, TrainingPreset] = {
+    "default": TrainingPreset(name="default"),
+    # The paper's NN-CC protocol (Sec. 2.2, App. C) as its scripts run it: two 1-100-100-100-1 ReLU
+    # MLPs on raw inputs, Adam lr 1e-4 (one per net: identical to one Adam, it acts elementwise),
+    # full batch, up to 20 000 epochs or loss < 1e-7, last-epoch weights, symmetry as a penalty.
+    "paper": TrainingPreset(
+        name="paper",
+        hidden=(100, 100, 100),
+        activation="relu",
+        linear_term=False,
+        symmetry_mode="penalty",
+        lambda_sym=10.0,
+        n_sym=1000,
+        dtype="float32",
+        scale_inputs=False,
+        scale_output=False,
+        warm_start=False,
+        adam_steps=20000,
+        adam_lr=1e-4,
+        lm_max_iter=0,
+        stop_loss=1e-7,
+        n_starts=1,
+        combine="best",
+    ),
+}
+
+
+def get_preset(preset: str | TrainingPreset | None) -> TrainingPreset:
+    """A preset by name (``"default"``, ``"paper"``) or the object itself."""
+    if preset is None:
+        return PRESETS["default"]
+    if isinstance(preset, TrainingPreset):
+        return preset
+    try:
+        return PRESETS[str(preset)]
+    except KeyError:
+        raise ConfigError(
+            f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}"
+        ) from None

@@ -1,0 +1,1 @@
+"""File formats: CSV records and model files."""

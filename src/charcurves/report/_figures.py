@@ -1,0 +1,52 @@
+"""Figures (matplotlib, ``ax=`` convention): the identified curves over their training range."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+__all__ = ["plot_curves"]
+
+
+def plot_curves(model, truth: dict[str, Callable] | None = None, *, axes=None, n: int = 1000,
+                margin: float = 0.15, label: str | None = None, title: str | None = None):
+    """Plot each identified curve with its training range shaded (the paper's Fig. 3).
+
+    The curves are drawn a little beyond the training range (``margin``, as a fraction of it) so
+    that extrapolation is visible; the shaded band marks where data constrained the curve.
+    ``truth`` (name -> callable) is overlaid dashed when known. Returns the figure.
+    """
+    if axes is None:
+        import matplotlib.pyplot as plt
+
+        fig, axes = plt.subplots(1, len(model.curves), figsize=(5.0 * len(model.curves), 3.8), squeeze=False)
+        axes = axes[0]
+    else:
+        axes = np.atleast_1d(axes)
+        fig = axes[0].figure
+    for ax, (name, curve) in zip(axes, model.curves.items()):
+        lo, hi = curve.domain
+        pad = margin * (hi - lo)
+        z = np.linspace(lo - pad, hi + pad, n)
+        ax.axvspan(lo, hi, color="0.92", zorder=0, label="training range")
+        ax.plot(z, curve(z), color="C0", lw=2, label=label or model.method)
+        if truth and name in truth:
+            ax.plot(z, truth[name](z), "k--", lw=1.2, label="truth")
+        expr = curve.expression()
+        ax.set_xlabel(curve.argument)
+        ax.set_ylabel(f"{name}({curve.argument})")
+        ax.set_title(f"{name}({curve.argument})" + (f" = {_short(expr)}" if expr is not None else ""), fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="best")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def _short(expr, digits: int = 4) -> str:
+    import sympy as sp
+
+    text = str(sp.N(expr, digits))
+    return text if len(text) <= 60 else text[:57] + "..."

@@ -1,0 +1,59 @@
+"""Benchmark systems ``x'' + f1(x') + f2(x) = A cos(Ω t)``: Duffing and stick-slip.
+
+Examples
+--------
+>>> from charcurves.systems import get_system
+>>> system = get_system("duffing")
+>>> system.parameters()["alpha"]
+-1.0
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .._errors import ConfigError
+from ._base import BenchmarkSystem
+from ._duffing import Duffing
+from ._stick_slip import StickSlip
+
+__all__ = ["BenchmarkSystem", "Duffing", "StickSlip", "get_system", "SYSTEM_NAMES"]
+
+_REGISTRY: dict[str, type[BenchmarkSystem]] = {"duffing": Duffing, "stick-slip": StickSlip}
+#: Names accepted by :func:`get_system` ("stick_slip" is accepted as an alias of "stick-slip").
+SYSTEM_NAMES = tuple(_REGISTRY)
+
+
+def get_system(name: str, variant: str = "paper", **overrides: Any) -> BenchmarkSystem:
+    """Build a benchmark system by name.
+
+    Parameters
+    ----------
+    name : {"duffing", "stick-slip"}
+        System name (``"stick_slip"`` and any letter case are accepted too).
+    variant : str
+        Named parameter set: ``"paper"`` or ``"scripts"`` (both systems), ``"smooth"``
+        (stick-slip).
+    **overrides
+        Field values that replace the variant's, e.g. ``alpha=-1.05``, ``tolerance="scipy-default"``.
+
+    Returns
+    -------
+    BenchmarkSystem
+
+    Raises
+    ------
+    ConfigError
+        For an unknown name, variant or parameter.
+    """
+    key = str(name).strip().lower().replace("_", "-") if isinstance(name, str) else name
+    cls = _REGISTRY.get(key) if isinstance(key, str) else None
+    if cls is None:
+        raise ConfigError(f"unknown system {name!r}; choose one of {', '.join(map(repr, SYSTEM_NAMES))}")
+    fields = [f for f in cls.__dataclass_fields__ if f != "variant"]
+    unknown = sorted(set(overrides) - set(fields))
+    if unknown:
+        raise ConfigError(
+            f"unknown {cls.name} parameter(s) {', '.join(map(repr, unknown))}; valid ones are {', '.join(fields)}"
+        )
+    return cls(variant=variant, **overrides)

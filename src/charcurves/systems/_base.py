@@ -1,0 +1,189 @@
+"""Common machinery of the benchmark systems x'' + f1(x') + f2(x) = A cos(Ω t)."""
+
+from __future__ import annotations
+
+import abc
+import dataclasses
+import math
+import numbers
+from collections.abc import Callable
+from typing import Any, ClassVar
+
+import numpy as np
+
+from .._errors import ConfigError, SimulationError
+from ..data._trajectory import Trajectory
+
+__all__ = ["BenchmarkSystem", "TOLERANCE_NAMES"]
+
+#: Named solver-tolerance presets; "tight" is resolved by each system (see ``_tight_tolerances``).
+TOLERANCE_NAMES = ("tight", "scipy-default")
+#: LSODA's own defaults in ``scipy.integrate.solve_ivp`` (what the authors' scripts ran with).
+_SCIPY_DEFAULT = (1e-3, 1e-6)
+
+
+def _real(name: str, value: Any, *, positive: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise ConfigError(f"{name} must be a finite real number, got {value!r}")
+    if positive and value <= 0:
+        raise ConfigError(f"{name} must be positive, got {value!r}")
+    return float(value)
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class BenchmarkSystem(abc.ABC):
+    """A forced one-degree-of-freedom system ``x'' + f1(x') + f2(x) = A cos(Ω t)`` (unit mass).
+
+    Parameters left as ``None`` take the value of the chosen ``variant``; ``rtol``/``atol``
+    left as ``None`` follow ``tolerance`` (``"tight"`` or ``"scipy-default"``), whose own default
+    depends on the variant.
+
+    Parameters
+    ----------
+    variant : str
+        Named parameter set (see ``VARIANTS`` of the subclass).
+    A, Omega : float
+        Forcing amplitude and angular frequency.
+    x0, v0 : float
+        Initial displacement and velocity (at the first output time).
+    tolerance : {"tight", "scipy-default"}, optional
+        Solver-tolerance preset.
+    rtol, atol : float, optional
+        LSODA tolerances; override ``tolerance``.
+    """
+
+    #: Registry name, also the name of the simulated trajectories.
+    name: ClassVar[str] = "system"
+    #: Variant name -> default field values (every field left ``None`` must be listed).
+    VARIANTS: ClassVar[dict[str, dict[str, Any]]] = {}
+    #: Fields reported by :meth:`parameters`, in order.
+    _PARAMETER_FIELDS: ClassVar[tuple[str, ...]] = ("A", "Omega", "x0", "v0")
+
+    variant: str = "paper"
+    A: float | None = None
+    Omega: float | None = None
+    x0: float | None = None
+    v0: float | None = None
+    tolerance: str | None = None
+    rtol: float | None = None
+    atol: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.variant not in self.VARIANTS:
+            raise ConfigError(
+                f"unknown {self.name} variant {self.variant!r}; choose one of "
+                f"{', '.join(map(repr, self.VARIANTS))}"
+            )
+        defaults = self.VARIANTS[self.variant]
+        for f in dataclasses.fields(self):
+            if getattr(self, f.name) is None and f.name in defaults:
+                object.__setattr__(self, f.name, defaults[f.name])
+        if self.tolerance not in TOLERANCE_NAMES:
+            raise ConfigError(
+                f"unknown tolerance preset {self.tolerance!r}; choose one of "
+                f"{', '.join(map(repr, TOLERANCE_NAMES))}, or give rtol= and atol="
+            )
+        rtol, atol = self._tight_tolerances() if self.tolerance == "tight" else _SCIPY_DEFAULT
+        object.__setattr__(self, "rtol", _real("rtol", rtol if self.rtol is None else self.rtol, positive=True))
+        object.__setattr__(self, "atol", _real("atol", atol if self.atol is None else self.atol, positive=True))
+        for key in self._PARAMETER_FIELDS:
+            object.__setattr__(self, key, _real(key, getattr(self, key)))
+        self._validate()
+
+    # ------------------------------------------------------------------ hooks
+    def _tight_tolerances(self) -> tuple[float, float]:
+        """(rtol, atol) of the ``"tight"`` preset: a solver-independent reference solution."""
+        return 1e-10, 1e-12
+
+    def _validate(self) -> None:
+        """Extra checks of a subclass (raise :class:`ConfigError`)."""
+
+    @abc.abstractmethod
+    def f1(self, v: Any) -> np.ndarray:
+        """True damping curve f1(x') (vectorised)."""
+
+    @abc.abstractmethod
+    def f2(self, x: Any) -> np.ndarray:
+        """True stiffness curve f2(x) (vectorised)."""
+
+    @abc.abstractmethod
+    def _integrate(self, t_eval: np.ndarray, rtol: float, atol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Solve from (t_eval[0], x0, v0); return x, v, a at ``t_eval``."""
+
+    # ------------------------------------------------------------------ public API
+    def forcing(self, t: Any) -> np.ndarray:
+        """External force F(t) = A cos(Ω t) (vectorised)."""
+        return self.A * np.cos(self.Omega * np.asarray(t, dtype=float))
+
+    def acceleration(self, t: Any, x: Any, v: Any) -> np.ndarray:
+        """x'' = F(t) − f1(v) − f2(x) (vectorised)."""
+        return self.forcing(t) - self.f1(v) - self.f2(x)
+
+    def true_curves(self) -> dict[str, Callable[[Any], np.ndarray]]:
+        """The true characteristic curves, ``{"f1": f1, "f2": f2}``."""
+        return {"f1": self.f1, "f2": self.f2}
+
+    def parameters(self) -> dict[str, float]:
+        """Physical parameters (curves, forcing, initial conditions) as a plain dict."""
+        return {key: float(getattr(self, key)) for key in self._PARAMETER_FIELDS}
+
+    def sticking_mask(self, traj: Trajectory) -> np.ndarray:
+        """Boolean mask of samples where the mass sticks (none for systems without dry friction)."""
+        return np.zeros(traj.n_samples, dtype=bool)
+
+    def simulate(
+        self,
+        t_end: float = 40.0,
+        n_points: int = 1000,
+        *,
+        x0: float | None = None,
+        v0: float | None = None,
+        A: float | None = None,
+        Omega: float | None = None,
+        t_eval: Any = None,
+        rtol: float | None = None,
+        atol: float | None = None,
+    ) -> Trajectory:
+        """Integrate the system with LSODA and sample it.
+
+        Parameters
+        ----------
+        t_end : float
+            End time; the samples are ``linspace(0, t_end, n_points)``.
+        n_points : int
+            Number of samples.
+        x0, v0, A, Omega : float, optional
+            Override the system's initial conditions / forcing (e.g. validation trajectories).
+        t_eval : array_like, optional
+            Explicit strictly increasing sample times (replaces ``t_end``/``n_points``); the
+            initial conditions hold at ``t_eval[0]``.
+        rtol, atol : float, optional
+            Override the system's tolerances.
+
+        Returns
+        -------
+        Trajectory
+            ``x``, ``v`` from the solver, ``a`` from the equation of motion at the samples (not
+            differentiated), clean ``F``.
+        """
+        changes = {k: val for k, val in {"x0": x0, "v0": v0, "A": A, "Omega": Omega}.items() if val is not None}
+        system = dataclasses.replace(self, **changes) if changes else self
+        if t_eval is None:
+            t_end = _real("t_end", t_end, positive=True)
+            if isinstance(n_points, bool) or not isinstance(n_points, numbers.Integral) or n_points < 2:
+                raise ConfigError(f"n_points must be an integer >= 2, got {n_points!r}")
+            times = np.linspace(0.0, t_end, int(n_points))
+        else:
+            times = np.asarray(t_eval, dtype=float).reshape(-1)
+            if times.size < 2 or not np.isfinite(times).all() or (np.diff(times) <= 0).any():
+                raise ConfigError("t_eval must be at least 2 finite, strictly increasing times")
+        rtol = system.rtol if rtol is None else _real("rtol", rtol, positive=True)
+        atol = system.atol if atol is None else _real("atol", atol, positive=True)
+        x, v, a = system._integrate(times, rtol, atol)
+        if not (np.isfinite(x).all() and np.isfinite(v).all()):
+            raise SimulationError(f"{self.name} simulation produced non-finite values; check the parameters")
+        return Trajectory(t=times, x=x, F=system.forcing(times), v=v, a=a, name=self.name)
+
+
+def solver_failed(name: str, message: str) -> SimulationError:
+    return SimulationError(f"{name} simulation failed in LSODA ({message}); try looser tolerances or a shorter t_end")

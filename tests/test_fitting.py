@@ -1,0 +1,277 @@
+"""Fitting: Parametric, NN-CC, NN-CC+sym, free gain, gauge, batching, presets, persistence."""
+
+import json
+
+import numpy as np
+import pytest
+
+import charcurves as cc
+from charcurves import ConfigError, DataError, ModelFileError
+from charcurves.data import corrupt
+from charcurves.fitting import PRESETS, CharacteristicCurves, load_model
+from charcurves.metrics import curve_errors, curve_rmse
+
+
+def test_parametric_recovers_duffing_coefficients_exactly_on_clean_data(duffing):
+    system, clean = duffing
+    model = cc.fit(clean, method="parametric", basis="f1=z; f2=z, z**3")
+    assert model.curves["f1"].coefficients == pytest.approx([0.3], abs=1e-9)
+    assert model.curves["f2"].coefficients == pytest.approx([-1.0, 1.0], abs=1e-9)
+    errs = curve_errors(model, system.true_curves())
+    assert errs["f1"] < 1e-9 and errs["f2"] < 1e-9
+    expr = model.curves["f2"].expression()
+    import sympy as sp
+
+    z = sp.Symbol("z")
+    assert float(expr.coeff(z, 3)) == pytest.approx(1.0, abs=1e-9)
+    eq = model.to_sympy()
+    assert "Derivative" in str(eq.lhs)
+    assert "x" in model.to_latex()
+
+
+def test_parametric_at_20db_is_at_the_statistical_limit(duffing):
+    system, clean = duffing
+    errs = np.array([list(curve_errors(cc.fit(corrupt(clean, 20, seed=s), method="parametric"),
+                                       system.true_curves()).values()) for s in range(5)])
+    mean = errs.mean(axis=0)
+    # the paper's Table 2 implies ~1.1e-3 / 1.6e-3; the issue asks <= 2e-3
+    assert mean[0] <= 2e-3 and mean[1] <= 2e-3, mean
+
+
+def test_nn_cc_sym_single_seed_accuracy_and_gauge(duffing, duffing_20db):
+    system, _ = duffing
+    model = cc.fit(duffing_20db, method="nn-cc+sym", random_state=0, threads=1)
+    errs = curve_errors(model, system.true_curves())
+    # seed 0 is the hardest of the five noise seeds for f2 (see the slow test for the mean)
+    assert errs["f1"] < 4e-3 and errs["f2"] < 7e-3, errs
+    # exact odd curves: pinned at 0, the constant lives in the equation's offset
+    for c in model.curves.values():
+        assert float(c(np.array([0.0]))[0]) == 0.0
+        z = c.grid(50)
+        assert np.allclose(c(z), -c(-z), atol=1e-12)
+    assert abs(model.offset) < 0.01
+    # the data loss is at the noise floor (sigma_n^2 = 0.01 * var(F) = 1.25e-3)
+    assert 1.0e-3 < model.loss < 1.5e-3
+
+
+def test_nn_cc_without_symmetry_applies_the_f2_gauge(duffing, duffing_20db):
+    system, _ = duffing
+    model = cc.fit(duffing_20db, method="nn-cc", random_state=0, threads=1)
+    assert float(model.curves["f2"](np.array([0.0]))[0]) == pytest.approx(0.0, abs=1e-12)
+    assert model.offset == 0.0
+    errs = curve_errors(model, system.true_curves())
+    assert errs["f1"] < 1e-2 and errs["f2"] < 1e-2, errs
+    # the f1(0) = 0 gauge moves the constant to f2 and leaves the sum unchanged
+    other = cc.fit(duffing_20db, method="nn-cc", random_state=0, threads=1, gauge="f1")
+    assert float(other.curves["f1"](np.array([0.0]))[0]) == pytest.approx(0.0, abs=1e-12)
+    v, x = np.linspace(-0.5, 0.5, 7), np.linspace(-1, 1, 7)
+    s1 = model.curves["f1"](v) + model.curves["f2"](x)
+    s2 = other.curves["f1"](v) + other.curves["f2"](x)
+    assert np.allclose(s1, s2, atol=1e-12)
+
+
+def test_free_gain_recovers_a_scaled_forcing(duffing):
+    system, clean = duffing
+    noisy = corrupt(clean, 20, seed=1)
+    scaled = noisy.replace(F=noisy.F / 2.5)
+    model = cc.fit(scaled, method="nn-cc+sym", free_gain=True, random_state=1, threads=1)
+    assert model.gain == pytest.approx(2.5, rel=0.02)
+    known = cc.fit(noisy, method="nn-cc+sym", random_state=1, threads=1)
+    e_free = curve_errors(model, system.true_curves())
+    e_known = curve_errors(known, system.true_curves())
+    for k in ("f1", "f2"):
+        assert e_free[k] < 1.5 * e_known[k] + 1e-3, (e_free, e_known)
+    par = cc.fit(scaled, method="parametric", free_gain=True)
+    assert par.gain == pytest.approx(2.5, rel=0.01)
+
+
+def test_offsets_of_real_records_are_kept_when_curves_are_odd(duffing):
+    system, clean = duffing
+    biased = corrupt(clean, 30, seed=2)
+    biased = biased.replace(F=biased.F + 0.2)  # a force-sensor bias
+    model = cc.fit(biased, method="nn-cc+sym", random_state=0, threads=1)
+    # x'' + f1 + f2 + b = F_measured with F_measured = F + 0.2, so b = +0.2
+    assert model.offset == pytest.approx(0.2, abs=0.01)
+    errs = curve_errors(model, system.true_curves())
+    assert errs["f1"] < 5e-3 and errs["f2"] < 5e-3, errs
+
+
+def test_batched_fits_equal_separate_fits(duffing):
+    _, clean = duffing
+    trajs = [corrupt(clean, 20, seed=s) for s in (3, 4)]
+    preset = PRESETS["default"].replace(n_starts=2, adam_steps=50, lm_max_iter=20)
+    est = CharacteristicCurves(method="nn-cc+sym", preset=preset, threads=1)
+    batch = est.fit_many(trajs, seeds=[11, 12])
+    single = [est.fit_many([tr], seeds=[s])[0] for tr, s in zip(trajs, (11, 12))]
+    z = np.linspace(-0.9, 0.9, 33)
+    for b, s in zip(batch, single):
+        for name in ("f1", "f2"):
+            assert np.allclose(b.curves[name](z), s.curves[name](z), rtol=1e-7, atol=1e-9)
+
+
+def test_fit_is_deterministic_for_a_seed(duffing_20db):
+    preset = PRESETS["default"].replace(n_starts=2, adam_steps=50, lm_max_iter=10)
+    a = cc.fit(duffing_20db, method="nn-cc", preset=preset, random_state=5, threads=1)
+    b = cc.fit(duffing_20db, method="nn-cc", preset=preset, random_state=5, threads=1)
+    c = cc.fit(duffing_20db, method="nn-cc", preset=preset, random_state=6, threads=1)
+    z = np.linspace(-1, 1, 21)
+    assert np.array_equal(a.curves["f2"](z), b.curves["f2"](z))
+    assert not np.array_equal(a.curves["f2"](z), c.curves["f2"](z))
+
+
+def test_paper_preset_is_the_papers_protocol():
+    p = PRESETS["paper"]
+    assert p.hidden == (100, 100, 100) and p.activation == "relu"
+    assert p.adam_lr == 1e-4 and p.adam_steps == 20000 and p.lm_max_iter == 0
+    assert p.symmetry_mode == "penalty" and p.lambda_sym == 10 and p.n_sym == 1000
+    assert not p.scale_inputs and not p.linear_term and p.n_starts == 1 and p.combine == "best"
+    assert p.stop_loss == 1e-7
+
+
+def test_paper_preset_short_run_uses_the_penalty(duffing_20db):
+    preset = PRESETS["paper"].replace(adam_steps=300)
+    model = cc.fit(duffing_20db, method="nn-cc+sym", preset=preset, random_state=0, threads=1)
+    f1 = model.curves["f1"]
+    assert f1.spec.symmetry_mode == "penalty" and not f1.pinned_at_zero
+    assert model.info["adam_steps"] == 300
+    # post-hoc gauge: f2(0) = 0 exactly, and no separate constant
+    assert float(model.curves["f2"](np.array([0.0]))[0]) == pytest.approx(0.0, abs=1e-6)
+    assert model.offset == 0.0
+    assert np.isfinite(model.loss)
+
+
+def test_stick_slip_jump_curve_with_sticking_samples_excluded():
+    from charcurves.systems import get_system
+
+    system = get_system("stick-slip")
+    clean = system.simulate()
+    noisy = corrupt(clean, 20, seed=0)
+    model = cc.fit(noisy, method="nn-cc+sym", jump=["f1"], random_state=0, threads=1)
+    assert model.info["n_sticking_samples"] > 100
+    comps = model.curves["f1"].components()
+    assert comps["jump_height"] == pytest.approx(0.801, rel=0.05)
+    errs = curve_errors(model, system.true_curves())
+    assert errs["f1"] < 3e-2 and errs["f2"] < 1e-2, errs
+
+
+def test_save_load_round_trip_gives_identical_predictions(tmp_path, duffing_20db):
+    preset = PRESETS["default"].replace(n_starts=2, adam_steps=30, lm_max_iter=5)
+    model = cc.fit(duffing_20db, method="nn-cc+sym", jump="f1", preset=preset, threads=1)
+    model.save(tmp_path / "m")
+    back = load_model(tmp_path / "m")
+    z = np.linspace(-1.2, 1.2, 41)
+    for name in ("f1", "f2"):
+        assert np.array_equal(model.curves[name](z), back.curves[name](z))
+    assert back.gain == model.gain and back.offset == model.offset and back.method == model.method
+    doc = json.loads((tmp_path / "m" / "model.json").read_text())
+    assert doc["format_version"] == 1 and doc["curves"][0]["network"]["jump"] is True
+    par = cc.fit(duffing_20db, method="parametric")
+    par.save(tmp_path / "p")
+    back = load_model(tmp_path / "p")
+    assert np.array_equal(par.curves["f2"](z), back.curves["f2"](z))
+    assert str(back.curves["f2"].expression()) == str(par.curves["f2"].expression())
+
+
+def test_damaged_model_files_are_refused(tmp_path, duffing_20db):
+    model = cc.fit(duffing_20db, method="parametric")
+    model.save(tmp_path / "m")
+    blob = (tmp_path / "m" / "arrays.safetensors").read_bytes()
+    (tmp_path / "m" / "arrays.safetensors").write_bytes(blob[:-3] + b"xyz")
+    with pytest.raises(ModelFileError, match="checksum"):
+        load_model(tmp_path / "m")
+    model.save(tmp_path / "m")
+    doc = json.loads((tmp_path / "m" / "model.json").read_text())
+    doc["format_version"] = 99
+    (tmp_path / "m" / "model.json").write_text(json.dumps(doc))
+    with pytest.raises(ModelFileError, match="version 99 is not supported"):
+        load_model(tmp_path / "m")
+    (tmp_path / "m" / "model.json").write_text("{not json")
+    with pytest.raises(ModelFileError, match="not valid JSON"):
+        load_model(tmp_path / "m")
+    with pytest.raises(ModelFileError, match="missing"):
+        load_model(tmp_path / "nothing-here")
+
+
+def test_configuration_errors_name_the_fix(duffing_20db):
+    with pytest.raises(ConfigError, match="unknown method 'nn-xx'.*nn-cc"):
+        cc.fit(duffing_20db, method="nn-xx")
+    with pytest.raises(ConfigError, match="use nn-cc\\+sym"):
+        cc.fit(duffing_20db, method="nn-cc", symmetry="f1=odd")
+    with pytest.raises(ConfigError, match="unknown symmetry 'oddish'"):
+        cc.fit(duffing_20db, method="nn-cc+sym", symmetry="f1=oddish")
+    with pytest.raises(ConfigError, match="unknown curve 'f3'"):
+        cc.fit(duffing_20db, method="nn-cc+sym", symmetry="f3=odd")
+    with pytest.raises(ConfigError, match="unknown preset 'fast'"):
+        cc.fit(duffing_20db, method="nn-cc", preset="fast")
+    with pytest.raises(ConfigError, match="unknown family 'tri-dof'"):
+        cc.fit(duffing_20db, family="tri-dof")
+    with pytest.raises(ConfigError, match="--jump names unknown curve"):
+        cc.fit(duffing_20db, method="nn-cc+sym", jump="f9")
+    with pytest.raises(ConfigError, match="cannot parse basis function"):
+        cc.fit(duffing_20db, method="parametric", basis="f1=z**; f2=z")
+    with pytest.raises(ConfigError, match="in the curve's argument z only"):
+        cc.fit(duffing_20db, method="parametric", basis="f1=y; f2=z")
+    with pytest.raises(ConfigError, match="not a plain expression"):
+        cc.fit(duffing_20db, method="parametric", basis="f1=__import__('os'); f2=z")
+
+
+def test_data_errors_name_the_fix(duffing_20db):
+    one_sided = duffing_20db.replace(x=np.abs(duffing_20db.x) + 0.1)
+    with pytest.raises(DataError, match="both sides of 0"):
+        cc.fit(one_sided, method="nn-cc+sym")
+    still = duffing_20db.replace(x=np.zeros(duffing_20db.n_samples) + 0.3)
+    with pytest.raises(DataError, match="constant over the record"):
+        cc.fit(still, method="nn-cc")
+    short = duffing_20db.slice(slice(0, 10))
+    with pytest.raises(DataError, match="at least 30 samples"):
+        cc.fit(short, method="nn-cc")
+    bare = duffing_20db.replace(v=None, a=None)
+    with pytest.raises(DataError, match="--derivatives given needs v and a"):
+        cc.fit(bare, method="nn-cc", derivatives="given")
+
+
+def test_estimated_derivatives_path_runs(duffing):
+    system, clean = duffing
+    noisy_x = corrupt(clean, 40, on="state", seed=0)
+    model = cc.fit(noisy_x, method="parametric", derivatives="savgol")
+    errs = curve_errors(model, system.true_curves())
+    assert errs["f1"] < 0.05 and errs["f2"] < 0.08, errs
+
+
+def test_curve_rmse_alignment():
+    from charcurves.curves import BasisFittedCurve
+
+    c = BasisFittedCurve("f2", "x", (-1, 1), ["z", "z**3"], [1.0, 0.5], shift=0.3)
+    truth = lambda z: z + 0.5 * z**3  # noqa: E731
+    assert curve_rmse(c, truth) == pytest.approx(0.3)
+    assert curve_rmse(c, truth, align="zero") == pytest.approx(0.0, abs=1e-15)
+    assert curve_rmse(c, truth, align="mean") == pytest.approx(0.0, abs=1e-15)
+    with pytest.raises(ConfigError):
+        curve_rmse(c, truth, align="best")
+
+
+def test_estimator_follows_the_sklearn_contract():
+    est = CharacteristicCurves(method="nn-cc", random_state=3)
+    params = est.get_params()
+    assert params["method"] == "nn-cc" and params["random_state"] == 3
+    est.set_params(method="parametric")
+    assert est.method == "parametric"
+    with pytest.raises(ConfigError, match="unknown parameter"):
+        est.set_params(colour="red")
+    from charcurves import NotFittedError
+
+    with pytest.raises(NotFittedError, match="call fit"):
+        est.gain_
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method,limits", [("nn-cc", (1e-2, 1e-2)), ("nn-cc+sym", (4e-3, 4e-3)),
+                                           ("parametric", (2e-3, 2e-3))])
+def test_duffing_20db_five_seed_means(duffing, method, limits):
+    system, clean = duffing
+    errs = []
+    for seed in range(5):
+        model = cc.fit(corrupt(clean, 20, seed=seed), method=method, random_state=seed, threads=1)
+        errs.append([curve_errors(model, system.true_curves())[k] for k in ("f1", "f2")])
+    mean = np.mean(errs, axis=0)
+    assert mean[0] <= limits[0] and mean[1] <= limits[1], mean
