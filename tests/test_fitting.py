@@ -146,12 +146,27 @@ def test_stick_slip_jump_curve_with_sticking_samples_excluded():
     system = get_system("stick-slip")
     clean = system.simulate()
     noisy = corrupt(clean, 20, seed=0)
-    model = cc.fit(noisy, method="nn-cc+sym", jump=["f1"], random_state=0, threads=1)
+    model = cc.fit(noisy, method="nn-cc+sym", random_state=0, threads=1)  # jump="auto"
     assert model.info["n_sticking_samples"] > 100
+    assert model.curves["f1"].spec.jump and not model.curves["f2"].spec.jump
     comps = model.curves["f1"].components()
     assert comps["jump_height"] == pytest.approx(0.801, rel=0.05)
     errs = curve_errors(model, system.true_curves())
     assert errs["f1"] < 3e-2 and errs["f2"] < 1e-2, errs
+
+
+def test_auto_jump_stays_off_without_sticking_and_in_the_paper_preset(duffing_20db):
+    from charcurves.systems import get_system
+
+    model = cc.fit(duffing_20db, method="nn-cc", preset=PRESETS["default"].replace(n_starts=1, lm_max_iter=5),
+                   threads=1)
+    assert not model.curves["f1"].spec.jump
+    stick = corrupt(get_system("stick-slip").simulate(), 20, seed=0)
+    paper = cc.fit(stick, method="nn-cc", preset=PRESETS["paper"].replace(adam_steps=5), threads=1)
+    assert not paper.curves["f1"].spec.jump
+    off = cc.fit(stick, method="nn-cc", jump="none", preset=PRESETS["default"].replace(n_starts=1, lm_max_iter=5),
+                 threads=1)
+    assert not off.curves["f1"].spec.jump
 
 
 def test_save_load_round_trip_gives_identical_predictions(tmp_path, duffing_20db):

@@ -61,7 +61,9 @@ def _build_parser() -> argparse.ArgumentParser:
     f.add_argument("--preset", default="default", help="training preset: default or paper")
     f.add_argument("--seed", type=int, default=0)
     f.add_argument("--derivatives", default="auto", help="auto, given, savgol, spline, spectral or fd")
-    f.add_argument("--jump", default="", help="curves with a learned jump at 0, e.g. f1 (dry friction)")
+    f.add_argument("--jump", default="auto",
+                   help="curves with a learned jump at 0, e.g. f1 (dry friction); auto (default): on the "
+                        "velocity curve when the record has sticking phases; none: never")
     f.add_argument("--basis", default=None, help="parametric basis, e.g. \"f1=z; f2=z, z**3\"")
     f.add_argument("--keep-sticking", action="store_true", help="fit samples where x' = 0 over a run too")
     f.add_argument("--time-col", default="t")
@@ -129,14 +131,14 @@ def _cmd_simulate(a) -> int:
 
 
 def _fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_gain=False, gauge="f2",
-                   preset="default", seed=0, derivatives="auto", jump="", basis=None, keep_sticking=False,
+                   preset="default", seed=0, derivatives="auto", jump="auto", basis=None, keep_sticking=False,
                    truth=None, threads=None, device="cpu", figure=True, quiet=False, source=None):
     from .fitting import CharacteristicCurves
     from .metrics import curve_errors
 
     est = CharacteristicCurves(
         family=family, method=method, symmetry=sym, free_gain=free_gain, gauge=gauge, preset=preset,
-        derivatives=derivatives, jump=[j for j in jump.split(",") if j.strip()] if jump else (),
+        derivatives=derivatives, jump=jump if jump in ("auto", "none", "") else [j for j in jump.split(",") if j.strip()],
         basis=basis, exclude_sticking=not keep_sticking, random_state=seed,
         threads=1 if threads is None else threads, device=device,
         progress=_progress_printer(not quiet and preset == "paper"),

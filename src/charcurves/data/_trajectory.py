@@ -38,9 +38,9 @@ def _as_column(name: str, values: Any, n: int | None) -> np.ndarray:
     bad = ~np.isfinite(arr)
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
-        kind = "NaN" if np.isnan(arr[row]) else "infinite"
+        kind = "a NaN" if np.isnan(arr[row]) else "an infinite"
         raise DataError(
-            f"column {name!r} has a {kind} value at row {row} ({int(bad.sum())} non-finite in all); "
+            f"column {name!r} has {kind} value at row {row} ({int(bad.sum())} non-finite in all); "
             "remove or interpolate those rows (e.g. --rows to select a clean span)"
         )
     return arr

@@ -76,8 +76,10 @@ class CharacteristicCurves:
     derivatives : str
         "auto" (given v, a when present, otherwise estimated), "given", "savgol", "spline",
         "spectral" or "fd".
-    jump : sequence of str
-        Curves that get a learned jump at 0 (dry friction), e.g. ("f1",).
+    jump : "auto", "none" or sequence of str
+        Curves that get a learned jump at 0 (dry friction), e.g. ("f1",). "auto" (default) adds
+        one to the velocity curve when the record has sticking phases (x' = 0 over runs of
+        samples), which only dry friction produces.
     basis : str or dict, optional
         Basis per curve for "parametric", e.g. "f1=z; f2=z, z**3" (z = the curve's argument).
     exclude_sticking : bool
@@ -100,7 +102,7 @@ class CharacteristicCurves:
 
     def __init__(self, family: str = "separable", method: str = "nn-cc+sym", *, symmetry=None,
                  free_gain: bool = False, gain: float = 1.0, gauge: str = "f2", preset="default",
-                 derivatives: str = "auto", jump: Sequence[str] = (), basis=None,
+                 derivatives: str = "auto", jump: str | Sequence[str] = "auto", basis=None,
                  exclude_sticking: bool = True, hidden: Sequence[int] | None = None,
                  activation: str | None = None, random_state: int = 0, threads: int | None = None,
                  device: str = "cpu", progress: Callable | None = None):
@@ -152,6 +154,8 @@ class CharacteristicCurves:
                 f"method {self.method!r} has no symmetry prior; use {self.method}+sym to impose {self.symmetry!r}"
                 if self.method == "nn-cc" else f"method {self.method!r} does not take a symmetry prior"
             )
+        if self.jump == "auto" or self.jump is None or self.jump == "none":
+            return template, spec, sym, (self.jump or "none")
         jumps = [self.jump] if isinstance(self.jump, str) else list(self.jump or ())
         jumps = [j.strip() for item in jumps for j in str(item).split(",") if j.strip()]
         for j in jumps:
@@ -192,6 +196,15 @@ class CharacteristicCurves:
         trajs = [self._prepare(tr, sym, template) for tr in trajectories]
         if seeds is None:
             seeds = [self.random_state + i for i in range(len(trajs))]
+        if jumps == "none":
+            jumps = []
+        elif jumps == "auto":
+            from ..templates._separable import sticking_mask
+
+            sticks = any(sticking_mask(tr, rel_tol=None if self._given(tr) else 0.01).any() for tr in trajs)
+            velocity = [n for n, var in template.variables.items() if var == "v"]
+            auto_ok = spec["representation"] == "neural" and get_preset(self.preset).auto_jump
+            jumps = velocity if sticks and auto_ok else []
         if spec["representation"] == "basis":
             basis = parse_basis_option(self.basis, template.curve_names)
             if jumps:

@@ -183,9 +183,14 @@ def _adam(problem, theta, steps, lr, stop_loss, log, progress, holder, check_eve
                 log.stopped_by = "stop_loss"
                 break
         if done.any():
-            # models already below the stop loss keep their weights (as separate runs would)
-            theta.grad[done] = 0.0
-        opt.step()
+            # models already below the stop loss keep their weights (as separate runs would):
+            # Adam's momentum would still move them, so restore them after the step
+            frozen = theta.detach()[done].clone()
+            opt.step()
+            with torch.no_grad():
+                theta[done] = frozen
+        else:
+            opt.step()
         log.adam_steps = step + 1
     holder["theta"] = theta.detach()
     return theta.detach()

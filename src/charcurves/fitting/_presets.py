@@ -42,6 +42,9 @@ class TrainingPreset:
         within ``combine_tol`` (relative) of the lowest (starts stuck in a worse local minimum
         are dropped), which cancels much of the initialisation-dependent error.
     combine_tol : float
+    auto_jump : bool
+        Whether ``jump="auto"`` may add a learned jump to the velocity curve of records with
+        sticking phases (off in the paper preset: the paper's networks have none).
     """
 
     name: str
@@ -63,6 +66,7 @@ class TrainingPreset:
     n_starts: int = 6
     combine: str = "mean"
     combine_tol: float = 0.02
+    auto_jump: bool = True
 
     def __post_init__(self) -> None:
         if self.dtype not in ("float64", "float32"):
@@ -110,6 +114,7 @@ PRESETS: dict[str, TrainingPreset] = {
         stop_loss=1e-7,
         n_starts=1,
         combine="best",
+        auto_jump=False,
     ),
 }
 
