@@ -65,6 +65,10 @@ def _build_parser() -> argparse.ArgumentParser:
                    help="curves with a learned jump at 0, e.g. f1 (dry friction); auto (default): on the "
                         "velocity curve when the record has sticking phases; none: never")
     f.add_argument("--basis", default=None, help="parametric basis, e.g. \"f1=z; f2=z, z**3\"")
+    f.add_argument("--sr-engine", default=None, help="symbolic-regression engine: operon (default) or pysr")
+    f.add_argument("--sr-generations", type=int, default=None, help="SR generations (iterations)")
+    f.add_argument("--sr-populations", type=int, default=None)
+    f.add_argument("--sr-max-size", type=int, default=None, help="largest expression size (default 20)")
     f.add_argument("--keep-sticking", action="store_true", help="fit samples where x' = 0 over a run too")
     f.add_argument("--time-col", default="t")
     f.add_argument("--x-col", default="x")
@@ -132,14 +136,15 @@ def _cmd_simulate(a) -> int:
 
 def _fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_gain=False, gauge="f2",
                    preset="default", seed=0, derivatives="auto", jump="auto", basis=None, keep_sticking=False,
-                   truth=None, threads=None, device="cpu", figure=True, quiet=False, source=None):
+                   truth=None, threads=None, device="cpu", figure=True, quiet=False, source=None,
+                   sr_options=None):
     from .fitting import CharacteristicCurves
     from .metrics import curve_errors
 
     est = CharacteristicCurves(
         family=family, method=method, symmetry=sym, free_gain=free_gain, gauge=gauge, preset=preset,
         derivatives=derivatives, jump=jump if jump in ("auto", "none", "") else [j for j in jump.split(",") if j.strip()],
-        basis=basis, exclude_sticking=not keep_sticking, random_state=seed,
+        basis=basis, sr_options=sr_options, exclude_sticking=not keep_sticking, random_state=seed,
         threads=1 if threads is None else threads, device=device,
         progress=_progress_printer(not quiet and preset == "paper"),
     )
@@ -201,7 +206,9 @@ def _cmd_fit(a) -> int:
         from .systems import get_system
 
         truth = get_system(a.truth, a.truth_variant).true_curves()
-    _fit_and_write(traj, a.out, method=a.method, family=a.family, sym=a.sym, free_gain=a.free_gain,
+    sr_options = {k: v for k, v in (("engine", a.sr_engine), ("generations", a.sr_generations),
+                                    ("populations", a.sr_populations), ("max_size", a.sr_max_size)) if v is not None}
+    _fit_and_write(traj, a.out, method=a.method, family=a.family, sym=a.sym, free_gain=a.free_gain, sr_options=sr_options,
                    gauge=a.gauge, preset=a.preset, seed=a.seed, derivatives=a.derivatives, jump=a.jump,
                    basis=a.basis, keep_sticking=a.keep_sticking, truth=truth, threads=a.threads,
                    device=a.device, figure=not a.no_figure, quiet=a.quiet, source=os.path.abspath(a.csv))

@@ -17,12 +17,42 @@ from ._presets import get_preset
 
 __all__ = ["CharacteristicCurves", "METHODS", "parse_symmetry", "fit"]
 
-#: method name -> (representation, symmetry prior applied by default)
+#: The paper's twelve methods as named presets of shared parts: a curve representation, whether a
+#: symmetry prior applies (odd curves unless told otherwise) and whether the learned curves are
+#: distilled into closed forms afterwards (post-SR).
 METHODS: dict[str, dict[str, Any]] = {
-    "nn-cc": {"representation": "neural", "symmetry": False},
-    "nn-cc+sym": {"representation": "neural", "symmetry": True},
-    "parametric": {"representation": "basis", "symmetry": False},
+    "nn-cc": {"representation": "neural", "symmetry": False, "post_sr": False},
+    "nn-cc+post-sr": {"representation": "neural", "symmetry": False, "post_sr": True},
+    "nn-cc+sym": {"representation": "neural", "symmetry": True, "post_sr": False},
+    "nn-cc+sym+post-sr": {"representation": "neural", "symmetry": True, "post_sr": True},
+    "poly-cc": {"representation": "poly", "symmetry": False, "post_sr": False},
+    "sindy": {"representation": "sindy", "symmetry": False, "post_sr": False, "free_gain": True},
+    "sindy-cc": {"representation": "sindy", "symmetry": False, "post_sr": False},
+    "sindy-cc+sym": {"representation": "sindy", "symmetry": True, "post_sr": False},
+    "sindy-cc+sym+post-sr": {"representation": "sindy", "symmetry": True, "post_sr": True},
+    "sr": {"representation": "sr", "symmetry": False, "post_sr": False},
+    "sr-cc": {"representation": "sr-cc", "symmetry": False, "post_sr": False},
+    "parametric": {"representation": "basis", "symmetry": False, "post_sr": False},
 }
+
+#: Fitters of the other representations, loaded on first use ("module:function"). Each is called as
+#: ``fitter(traj, template, *, symmetry, options, sr_options, random_state, method)`` and returns a
+#: FittedModel; ``symmetry`` maps curve names to "none"/"odd"/"even".
+_FITTERS = {
+    "poly": "charcurves.fitting._poly:fit_poly",
+    "sindy": "charcurves.fitting._sindy:fit_sindy",
+    "sr": "charcurves.symbolic._methods:fit_sr",
+    "sr-cc": "charcurves.symbolic._methods:fit_sr_cc",
+}
+#: post-SR: ``distill_model(model, *, sr_options, random_state) -> FittedModel`` with closed-form curves
+_DISTILL = "charcurves.symbolic._distill:distill_model"
+
+
+def _load(path: str):
+    import importlib
+
+    module, func = path.split(":")
+    return getattr(importlib.import_module(module), func)
 
 
 def parse_symmetry(sym, curve_names=("f1", "f2")) -> dict[str, str]:
@@ -82,6 +112,12 @@ class CharacteristicCurves:
         samples), which only dry friction produces.
     basis : str or dict, optional
         Basis per curve for "parametric", e.g. "f1=z; f2=z, z**3" (z = the curve's argument).
+    options : dict, optional
+        Settings of the non-neural representations (e.g. {"degree": 10} for poly-cc,
+        {"threshold": 1e-4} for the SINDy family).
+    sr_options : dict, optional
+        Symbolic-regression settings for sr, sr-cc and post-SR: engine ("operon" default,
+        "pysr"), generations, populations, population_size, max_size, operators, selection.
     exclude_sticking : bool
         Leave out samples where the mass sticks (x' = 0 over a run): friction is set-valued there.
     random_state : int
@@ -103,7 +139,7 @@ class CharacteristicCurves:
     def __init__(self, family: str = "separable", method: str = "nn-cc+sym", *, symmetry=None,
                  free_gain: bool = False, gain: float = 1.0, gauge: str = "f2", preset="default",
                  derivatives: str = "auto", jump: str | Sequence[str] = "auto", basis=None,
-                 exclude_sticking: bool = True, hidden: Sequence[int] | None = None,
+                 options: dict | None = None, sr_options: dict | None = None, exclude_sticking: bool = True, hidden: Sequence[int] | None = None,
                  activation: str | None = None, random_state: int = 0, threads: int | None = None,
                  device: str = "cpu", progress: Callable | None = None):
         self.family = family
@@ -116,6 +152,8 @@ class CharacteristicCurves:
         self.derivatives = derivatives
         self.jump = jump
         self.basis = basis
+        self.options = options
+        self.sr_options = sr_options
         self.exclude_sticking = exclude_sticking
         self.hidden = hidden
         self.activation = activation
@@ -143,16 +181,18 @@ class CharacteristicCurves:
     def _resolve(self):
         if self.method not in METHODS:
             raise ConfigError(f"unknown method {self.method!r}; choose one of {', '.join(METHODS)}")
-        template = get_template(self.family, free_gain=bool(self.free_gain), gain=float(self.gain), gauge=self.gauge)
-        names = template.curve_names
         spec = METHODS[self.method]
+        free_gain = bool(self.free_gain) or bool(spec.get("free_gain", False))
+        template = get_template(self.family, free_gain=free_gain, gain=float(self.gain), gauge=self.gauge)
+        names = template.curve_names
         sym = parse_symmetry(self.symmetry, names)
         if spec["symmetry"] and all(v == "none" for v in sym.values()):
             sym = {n: "odd" for n in names}  # the paper's +sym: odd curves
         if not spec["symmetry"] and any(v != "none" for v in sym.values()):
+            with_sym = [m for m in METHODS if m.startswith(self.method.split("+")[0]) and METHODS[m]["symmetry"]]
             raise ConfigError(
-                f"method {self.method!r} has no symmetry prior; use {self.method}+sym to impose {self.symmetry!r}"
-                if self.method == "nn-cc" else f"method {self.method!r} does not take a symmetry prior"
+                f"method {self.method!r} has no symmetry prior; use {with_sym[0]} to impose {self.symmetry!r}"
+                if with_sym else f"method {self.method!r} does not take a symmetry prior"
             )
         if self.jump == "auto" or self.jump is None or self.jump == "none":
             return template, spec, sym, (self.jump or "none")
@@ -191,7 +231,19 @@ class CharacteristicCurves:
         return self
 
     def fit_many(self, trajectories: Sequence[Trajectory], seeds: Sequence[int] | None = None) -> list[FittedModel]:
-        """Fit many records (noise realisations, SNR levels...) in one batched computation."""
+        """Fit many records (noise realisations, SNR levels...); neural curves train in one batch."""
+        models = self._fit_many_raw(trajectories, seeds)
+        if METHODS[self.method]["post_sr"]:
+            distill = _load(_DISTILL)
+            if seeds is None:
+                seeds = [self.random_state + i for i in range(len(models))]
+            models = [distill(m, sr_options=dict(self.sr_options or {}), random_state=int(s))
+                      for m, s in zip(models, seeds)]
+            for m in models:
+                m.method = self.method
+        return models
+
+    def _fit_many_raw(self, trajectories, seeds):
         template, spec, sym, jumps = self._resolve()
         trajs = [self._prepare(tr, sym, template) for tr in trajectories]
         if seeds is None:
@@ -205,6 +257,13 @@ class CharacteristicCurves:
             velocity = [n for n, var in template.variables.items() if var == "v"]
             auto_ok = spec["representation"] == "neural" and get_preset(self.preset).auto_jump
             jumps = velocity if sticks and auto_ok else []
+        if spec["representation"] in _FITTERS:
+            if jumps:
+                raise ConfigError(f"--jump applies to neural curves, not to method {self.method!r}")
+            fitter = _load(_FITTERS[spec["representation"]])
+            return [fitter(tr, template, symmetry=sym, options=dict(self.options or {}),
+                           sr_options=dict(self.sr_options or {}), random_state=int(s), method=self.method)
+                    for tr, s in zip(trajs, seeds)]
         if spec["representation"] == "basis":
             basis = parse_basis_option(self.basis, template.curve_names)
             if jumps:
