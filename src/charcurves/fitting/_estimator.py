@@ -25,7 +25,7 @@ METHODS: dict[str, dict[str, Any]] = {
     "nn-cc+post-sr": {"representation": "neural", "symmetry": False, "post_sr": True},
     "nn-cc+sym": {"representation": "neural", "symmetry": True, "post_sr": False},
     "nn-cc+sym+post-sr": {"representation": "neural", "symmetry": True, "post_sr": True},
-    "poly-cc": {"representation": "poly", "symmetry": False, "post_sr": False},
+    "poly-cc": {"representation": "poly", "symmetry": False, "post_sr": False, "allows_symmetry": True},
     "sindy": {"representation": "sindy", "symmetry": False, "post_sr": False, "free_gain": True},
     "sindy-cc": {"representation": "sindy", "symmetry": False, "post_sr": False},
     "sindy-cc+sym": {"representation": "sindy", "symmetry": True, "post_sr": False},
@@ -188,7 +188,7 @@ class CharacteristicCurves:
         sym = parse_symmetry(self.symmetry, names)
         if spec["symmetry"] and all(v == "none" for v in sym.values()):
             sym = {n: "odd" for n in names}  # the paper's +sym: odd curves
-        if not spec["symmetry"] and any(v != "none" for v in sym.values()):
+        if not spec["symmetry"] and not spec.get("allows_symmetry") and any(v != "none" for v in sym.values()):
             with_sym = [m for m in METHODS if m.startswith(self.method.split("+")[0]) and METHODS[m]["symmetry"]]
             raise ConfigError(
                 f"method {self.method!r} has no symmetry prior; use {with_sym[0]} to impose {self.symmetry!r}"
@@ -261,9 +261,15 @@ class CharacteristicCurves:
             if jumps:
                 raise ConfigError(f"--jump applies to neural curves, not to method {self.method!r}")
             fitter = _load(_FITTERS[spec["representation"]])
-            return [fitter(tr, template, symmetry=sym, options=dict(self.options or {}),
-                           sr_options=dict(self.sr_options or {}), random_state=int(s), method=self.method)
-                    for tr, s in zip(trajs, seeds)]
+            out = []
+            for tr, s in zip(trajs, seeds):
+                options = dict(self.options or {})
+                if spec["representation"] in ("poly", "sindy"):
+                    options.setdefault("exclude_sticking", self.exclude_sticking)
+                    options.setdefault("stick_tol", None if self._given(tr) else 0.01)
+                out.append(fitter(tr, template, symmetry=sym, options=options,
+                                  sr_options=dict(self.sr_options or {}), random_state=int(s), method=self.method))
+            return out
         if spec["representation"] == "basis":
             basis = parse_basis_option(self.basis, template.curve_names)
             if jumps:

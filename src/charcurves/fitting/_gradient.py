@@ -46,7 +46,10 @@ class BatchedProblem:
     gain: float = 1.0
     bias: bool = False
     lambda_sym: float = 0.0
-    weight_decay: float = 0.0  # on network weights only (linear, jump, gain, constant stay free)
+    # on network weights only (linear, jump, gain, constant stay free); a float or one value per
+    # model (K,), which Bayesian regularisation updates during Levenberg-Marquardt
+    weight_decay: float | torch.Tensor = 0.0
+    bayesian: bool = False
 
     def __post_init__(self) -> None:
         self.offsets = []
@@ -63,12 +66,19 @@ class BatchedProblem:
         for i, term in enumerate(self.terms):
             sl = term.curve.slices()["mlp"]
             decay[self.offsets[i] + sl.start : self.offsets[i] + sl.stop] = True
-        self.decay_index = torch.nonzero(decay).flatten() if self.weight_decay > 0 else None
+        use_decay = self.bayesian or (float(torch.as_tensor(self.weight_decay).max()) > 0)
+        self.decay_index = torch.nonzero(decay).flatten() if use_decay else None
+        self.set_weight_decay(self.weight_decay)
         self.penalised = [
             i
             for i, t in enumerate(self.terms)
             if t.curve.symmetry != "none" and t.curve.symmetry_mode == "penalty" and self.lambda_sym > 0
         ]
+
+    def set_weight_decay(self, wd) -> None:
+        wd = torch.as_tensor(wd, dtype=self.y.dtype, device=self.y.device)
+        self.weight_decay = wd
+        self._sqrt_wd = torch.sqrt(wd.clamp_min(0)).reshape(-1, 1) if wd.dim() else torch.sqrt(wd.clamp_min(0))
 
     @property
     def K(self) -> int:
@@ -98,7 +108,7 @@ class BatchedProblem:
         for i in self.penalised:
             parts.append(self._sym_residual(theta, i))
         if self.decay_index is not None:
-            parts.append(math.sqrt(self.weight_decay) * theta[:, self.decay_index])
+            parts.append(self._sqrt_wd * theta[:, self.decay_index])
         return torch.cat(parts, dim=1) if len(parts) > 1 else parts[0]
 
     def _sym_residual(self, theta, i):
@@ -142,8 +152,8 @@ class BatchedProblem:
         if self.decay_index is not None:
             m = self.decay_index.numel()
             Jd = theta.new_zeros(K, m, self.n_params)
-            Jd[:, torch.arange(m), self.decay_index] = math.sqrt(self.weight_decay)
-            r.append(math.sqrt(self.weight_decay) * theta[:, self.decay_index])
+            Jd[:, torch.arange(m), self.decay_index] = self._sqrt_wd.expand(K, 1) if self._sqrt_wd.dim() else self._sqrt_wd
+            r.append(self._sqrt_wd * theta[:, self.decay_index])
             J.append(Jd)
         return torch.cat(r, dim=1), torch.cat(J, dim=1)
 
@@ -162,6 +172,7 @@ class TrainingLog:
     history: list = dataclasses.field(default_factory=list)  # (phase, step, mean loss)
     stopped_by: str = ""
     interrupted: bool = False
+    effective_parameters: list = dataclasses.field(default_factory=list)
 
 
 def _adam(problem, theta, steps, lr, stop_loss, log, progress, holder, check_every=100):
@@ -196,8 +207,43 @@ def _adam(problem, theta, steps, lr, stop_loss, log, progress, holder, check_eve
     return theta.detach()
 
 
+def _evidence_update(problem, theta, J):
+    """MacKay's evidence approximation (Foresee & Hagan's Bayesian regularisation for LM).
+
+    With E_D the raw sum of squared data residuals over N samples and E_W the squared norm of the
+    network weights, the most probable hyperparameters satisfy alpha = gamma / (2 E_W) and
+    beta = (N - gamma) / (2 E_D), where gamma = P_w - 2 alpha tr_w(H^-1) is the effective number
+    of weights and H = 2 beta J_D^T J_D + 2 alpha I_w the Gauss-Newton Hessian. In the loss
+    ||r||^2 + lambda ||w||^2 (r scaled by 1/sqrt(N)) this is lambda = alpha / (beta N).
+    """
+    K, _, P = J.shape
+    N = problem.y.shape[1]
+    n_used = (problem.weights > 0).sum(dim=1).to(theta.dtype)
+    Jd = J[:, :N, :] * torch.sqrt(n_used).view(K, 1, 1)  # Jacobian of the raw data residuals
+    rd = problem.residuals(theta)[:, :N] * torch.sqrt(n_used).view(K, 1)
+    E_D = rd.pow(2).sum(1)
+    idx = problem.decay_index
+    E_W = theta[:, idx].pow(2).sum(1).clamp_min(1e-12)
+    lam = torch.as_tensor(problem.weight_decay, dtype=theta.dtype).expand(K)
+    beta = (n_used - getattr(problem, "_gamma", torch.full((K,), float(idx.numel()), dtype=theta.dtype))) / (2 * E_D)
+    beta = beta.clamp_min(1e-12)
+    alpha = lam * beta * n_used
+    mask = torch.zeros(P, dtype=theta.dtype)
+    mask[idx] = 1.0
+    H = 2 * beta.view(K, 1, 1) * (Jd.transpose(1, 2) @ Jd) + torch.diag_embed(2 * alpha.view(K, 1) * mask + 1e-10)
+    Hinv = torch.linalg.inv(H)
+    tr_w = (torch.diagonal(Hinv, dim1=1, dim2=2) * mask).sum(1)
+    gamma = (idx.numel() - 2 * alpha * tr_w).clamp(1.0, float(idx.numel()))
+    problem._gamma = gamma
+    alpha_new = gamma / (2 * E_W)
+    beta_new = ((n_used - gamma) / (2 * E_D)).clamp_min(1e-12)
+    return alpha_new / (beta_new * n_used), gamma
+
+
 def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress, holder):
     K, P = theta.shape
+    if problem.bayesian:
+        problem.set_weight_decay(torch.full((K,), 1e-8, dtype=theta.dtype, device=theta.device))
     r, J = problem.residuals_jacobian(theta)
     cost = r.pow(2).sum(1)
     mu = torch.full((K,), 1e-3, dtype=theta.dtype, device=theta.device)
@@ -229,6 +275,15 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
         holder["theta"] = theta
         mu = torch.where(accept, (mu / 3).clamp_min(1e-12), (mu * 4).clamp_max(1e12))
         stalls = torch.where(accept & (rel < tol), stalls + 1, torch.where(accept, 0, stalls))
+        if problem.bayesian and bool(accept.any()):
+            # re-estimate the decay of the models that moved; the objective changes with it,
+            # so residuals, Jacobian and cost are recomputed under the new value
+            lam_new, gamma = _evidence_update(problem, theta, J)
+            lam_old = torch.as_tensor(problem.weight_decay).expand(K)
+            problem.set_weight_decay(torch.where(accept & active, lam_new, lam_old))
+            r, J = problem.residuals_jacobian(theta)
+            cost = r.pow(2).sum(1)
+            log.effective_parameters = gamma.tolist()
         finished = (stalls >= 3) | (mu >= 1e12) | (cost < stop_loss)
         active = active & ~finished
         log.lm_iterations = it + 1

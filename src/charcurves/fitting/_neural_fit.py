@@ -114,7 +114,7 @@ def fit_neural(
         terms.append(CurveTerm(spec, T(z), None, sym_pts))
     bias = all(curves[nm].pinned_at_zero for nm in names)
     problem = BatchedProblem(terms, y, F, w, free_gain=template.free_gain, gain=template.gain, bias=bias,
-                             lambda_sym=preset.lambda_sym, weight_decay=weight_decay)
+                             lambda_sym=preset.lambda_sym, weight_decay=weight_decay, bayesian=preset.bayesian)
 
     # ---------------------------------------------------------------- initialisation (per model seed)
     thetas = []
@@ -183,7 +183,9 @@ def fit_neural(
             "total_loss": float(total_loss[k * R + best] * s_out**2),
             "train_seconds": elapsed / K,
             "batch_size": K,
-            "weight_decay": weight_decay,
+            "weight_decay": (problem.weight_decay[k * R + best].item() if problem.weight_decay.dim()
+                             else float(problem.weight_decay)),
+            "effective_parameters": (log.effective_parameters[k * R + best] if log.effective_parameters else None),
         }
         model = FittedModel(template, method, fitted, g, offset, 0.0, info)
         resid = model.force_residual(trajectories[k])[masks[k]]

@@ -42,6 +42,9 @@ class TrainingPreset:
         within ``combine_tol`` (relative) of the lowest (starts stuck in a worse local minimum
         are dropped), which cancels much of the initialisation-dependent error.
     combine_tol : float
+    bayesian : bool
+        Bayesian regularisation (MacKay; Foresee & Hagan): the weight decay of the network
+        weights is re-estimated from the evidence at every Levenberg-Marquardt step.
     auto_jump : bool
         Whether ``jump="auto"`` may add a learned jump to the velocity curve of records with
         sticking phases (off in the paper preset: the paper's networks have none).
@@ -49,7 +52,7 @@ class TrainingPreset:
 
     name: str
     hidden: tuple[int, ...] = (8,)
-    activation: str = "tanh"
+    activation: str = "softplus"
     linear_term: bool = True
     symmetry_mode: str = "exact"
     lambda_sym: float = 10.0
@@ -67,6 +70,7 @@ class TrainingPreset:
     combine: str = "mean"
     combine_tol: float = 0.02
     auto_jump: bool = True
+    bayesian: bool = True
 
     def __post_init__(self) -> None:
         if self.dtype not in ("float64", "float32"):
@@ -115,6 +119,7 @@ PRESETS: dict[str, TrainingPreset] = {
         n_starts=1,
         combine="best",
         auto_jump=False,
+        bayesian=False,
     ),
 }
 

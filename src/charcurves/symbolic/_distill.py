@@ -3,14 +3,24 @@
 Each learned curve is evaluated on ``n`` evenly spaced points over its training range (the
 paper: 1000) and symbolic regression is run on ``z -> f(z)``; the result replaces the curve.
 
-Operator set ("auto", the default of ``sr_options["operators"]``): binary + - * for every
-curve, plus ``tanh`` only for curves with a jump at 0 -- a learned jump component
-(``NeuralFittedCurve`` with ``spec.jump``), a closed form that already contains
-tanh/sign/Abs, or samples in which one grid step carries more than 5 % of the curve's range and
-more than 20x the median step. This follows the paper (no unary operator for Duffing, tanh for
-stick-slip) without running two searches per curve, and a Coulomb friction law comes out as
-``c z + muN tanh(k z)`` with k >> 1 (k is only bounded below when the learned jump is narrower
-than the grid spacing).
+Operator set ("auto", the default of ``sr_options["operators"]``), following the paper (no
+unary operator for Duffing, tanh for stick-slip) without running two searches per curve:
+
+* a neural curve with a learned jump (``NeuralFittedCurve`` with ``spec.jump``, added for
+  records with sticking) is distilled *by parts*: its jump component ``mu tanh(z/eps)`` already
+  is a closed form and is kept as ``muN tanh(k z)``; SR with + - * runs on the smooth remainder
+  (curve minus jump), and the outer coefficients of both parts are refitted together. Measured
+  on stick-slip curves this is what makes a Coulomb law come out as ``c z + muN tanh(k z)``:
+  with tanh in the operator set, SR uses nested tanh to imitate the small network's wiggles
+  (the network itself is built from tanh units). ``k = 1/eps`` is capped at ``10/h`` (h the
+  grid spacing): a jump narrower than the grid is a step on every grid point either way, and the
+  cap keeps forward simulations from becoming needlessly stiff;
+* any other curve with a jump at 0 -- a closed form containing tanh/sign/Abs, or samples in
+  which one grid step carries more than 5 % of the curve's range and more than 20x the median
+  step -- gets + - * and tanh;
+* every other curve gets + - * only.
+
+An explicit ``sr_options["operators"]`` overrides all this (whole-curve SR with that set).
 """
 
 from __future__ import annotations
@@ -100,18 +110,56 @@ def distill_curve(curve: FittedCurve, engine: SymbolicRegressionEngine | None = 
     if not np.all(np.isfinite(y)):
         raise ConfigError(f"curve {curve.name} has non-finite values on its domain; cannot distil it")
     jump = has_jump(curve, z, y)
-    ops = tuple(operators) if operators is not None else (TANH_OPERATORS if jump else POLY_OPERATORS)
-    res = engine.fit(z[:, None], y, ["z"], random_state=int(random_state), operators=ops)
-    expr = res.expression
     zs = sp.Symbol("z")
+    parts = _neural_jump(curve, z) if operators is None else None
+    if parts is not None:
+        jump_vals, _mu, k = parts
+        res = engine.fit(z[:, None], y - jump_vals, ["z"], random_state=int(random_state), operators=POLY_OPERATORS)
+        expr, mse = _refit_with_jump(res.expression, k, z, y)
+        mode = "smooth part + learned jump"
+    else:
+        ops = tuple(operators) if operators is not None else (TANH_OPERATORS if jump else POLY_OPERATORS)
+        res = engine.fit(z[:, None], y, ["z"], random_state=int(random_state), operators=ops)
+        expr, mse = res.expression, res.mse
+        mode = "whole curve"
     if expr.free_symbols - {zs}:  # pragma: no cover - engines only see z
         raise ConfigError(f"post-SR of {curve.name} returned {expr}, which is not a function of z alone")
     if not expr.free_symbols:
         expr = sp.Float(float(expr), 15)
     meta = res.summary()
-    meta.update({"source_kind": curve.kind, "n_grid": int(n), "jump_detected": bool(jump),
-                 "distillation_rmse": float(np.sqrt(res.mse))})
+    meta.update({"source_kind": curve.kind, "n_grid": int(n), "jump_detected": bool(jump), "mode": mode,
+                 "expression": str(expr), "distillation_rmse": float(np.sqrt(mse))})
     return SymbolicFittedCurve(curve.name, curve.argument, curve.domain, expr, 0.0, meta)
+
+
+def _neural_jump(curve: FittedCurve, z: np.ndarray):
+    """(jump values on z, muN, k) of a neural curve's learned jump; None when it has none."""
+    spec = getattr(curve, "spec", None)
+    if spec is None or not getattr(spec, "jump", False):
+        return None
+    sl = spec.slices()
+    mu_m = curve.theta[:, sl["jump_height"]].reshape(-1) * curve.out_scale
+    eps_m = np.exp(curve.theta[:, sl["jump_log_eps"]].reshape(-1)) * curve.in_scale
+    with np.errstate(over="ignore", divide="ignore"):
+        vals = np.mean(mu_m[:, None] * np.tanh(z[None, :] / eps_m[:, None]), axis=0)
+    h = float(np.median(np.diff(z))) if z.size > 1 else 1.0
+    k = float(min(1.0 / max(float(np.median(eps_m)), 1e-300), 10.0 / max(h, 1e-300)))
+    return vals, float(np.mean(mu_m)), k
+
+
+def _refit_with_jump(smooth_expr, k: float, z: np.ndarray, y: np.ndarray):
+    """``smooth + muN tanh(k z)`` with all outer coefficients (muN too) refitted by least squares."""
+    import sympy as sp
+
+    from ._engine import _eval, _split_terms
+
+    zs = sp.Symbol("z")
+    step = sp.tanh(sp.Float(k, 15) * zs)
+    terms = [b for c, b in _split_terms(sp.expand(smooth_expr)) if c != 0] + [step]
+    A = np.column_stack([_eval(b, [zs], z[:, None]) for b in terms])
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    expr = sp.Add(*[sp.Float(float(c), 15) * b for c, b in zip(coef, terms)])
+    return expr, float(np.mean((A @ coef - y) ** 2))
 
 
 def distill_model(model, *, sr_options: dict | None = None, random_state: int = 0, n: int = 1000, traj=None):
