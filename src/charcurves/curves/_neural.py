@@ -110,8 +110,11 @@ class NeuralCurve:
         return torch.cat(parts, dim=1)
 
     # ------------------------------------------------------------------ evaluation
-    def evaluate(self, theta: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        """Curve values ``(K, N)`` at scaled arguments ``u`` (``(K, N)`` or ``(N,)``)."""
+    def evaluate(self, theta: torch.Tensor, u: torch.Tensor, u_both: torch.Tensor | None = None) -> torch.Tensor:
+        """Curve values ``(K, N)`` at scaled arguments ``u`` (``(K, N)`` or ``(N,)``).
+
+        ``u_both`` may pass ``cat([u, -u])`` precomputed (training evaluates the same inputs often).
+        """
         sl = self.slices()
         mlp = self.mlp
         th = theta[:, sl["mlp"]]
@@ -121,7 +124,7 @@ class NeuralCurve:
         if sym == "none":
             y = mlp.forward(th, u)
         else:
-            both = mlp.forward(th, torch.cat([u, -u], dim=1))
+            both = mlp.forward(th, torch.cat([u, -u], dim=1) if u_both is None else u_both)
             n = u.shape[1]
             y = 0.5 * (both[:, :n] - both[:, n:]) if sym == "odd" else 0.5 * (both[:, :n] + both[:, n:])
         if self.has_linear:
@@ -132,7 +135,7 @@ class NeuralCurve:
             y = y + mu * torch.tanh(u / eps)
         return y
 
-    def evaluate_jacobian(self, theta: torch.Tensor, u: torch.Tensor):
+    def evaluate_jacobian(self, theta: torch.Tensor, u: torch.Tensor, u_both: torch.Tensor | None = None):
         """Values ``(K, N)`` and Jacobian ``(K, N, n_params)``."""
         sl = self.slices()
         mlp = self.mlp
@@ -144,7 +147,7 @@ class NeuralCurve:
             y, J = mlp.forward_jacobian(th, u)
         else:
             n = u.shape[1]
-            yb, Jb = mlp.forward_jacobian(th, torch.cat([u, -u], dim=1))
+            yb, Jb = mlp.forward_jacobian(th, torch.cat([u, -u], dim=1) if u_both is None else u_both)
             s = -1.0 if sym == "odd" else 1.0
             y = 0.5 * (yb[:, :n] + s * yb[:, n:])
             J = 0.5 * (Jb[:, :n] + s * Jb[:, n:])

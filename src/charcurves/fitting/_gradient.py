@@ -35,6 +35,10 @@ class CurveTerm:
     multiplier: torch.Tensor | None = None  # (K, N)
     sym_points: torch.Tensor | None = None  # (K, N_sym) scaled points for the penalty
 
+    def __post_init__(self) -> None:
+        # exact-symmetry curves evaluate h(u) and h(-u) together; build that input once
+        self.u_both = torch.cat([self.u, -self.u], dim=1) if self.curve.exact_symmetry != "none" else None
+
 
 @dataclasses.dataclass
 class BatchedProblem:
@@ -69,11 +73,32 @@ class BatchedProblem:
         use_decay = self.bayesian or (float(torch.as_tensor(self.weight_decay).max()) > 0)
         self.decay_index = torch.nonzero(decay).flatten() if use_decay else None
         self.set_weight_decay(self.weight_decay)
+        self.n_used = (self.weights > 0).sum(dim=1).to(self.y.dtype)
+        self.gamma = None
         self.penalised = [
             i
             for i, t in enumerate(self.terms)
             if t.curve.symmetry != "none" and t.curve.symmetry_mode == "penalty" and self.lambda_sym > 0
         ]
+
+    def subset(self, rows: slice) -> BatchedProblem:
+        """The same problem for models ``rows`` only (models are independent)."""
+        terms = [CurveTerm(t.curve, t.u[rows], None if t.multiplier is None else t.multiplier[rows],
+                           None if t.sym_points is None else t.sym_points[rows]) for t in self.terms]
+        wd = self.weight_decay
+        wd = wd[rows] if torch.is_tensor(wd) and wd.dim() else wd
+        return BatchedProblem(terms, self.y[rows], self.F[rows], self.weights[rows], free_gain=self.free_gain,
+                              gain=self.gain, bias=self.bias, lambda_sym=self.lambda_sym, weight_decay=wd,
+                              bayesian=self.bayesian)
+
+    def refresh_decay_rows(self, theta: torch.Tensor, r: torch.Tensor, J: torch.Tensor) -> None:
+        """Update, in place, the residual and Jacobian rows of the weight decay (the last rows)."""
+        idx = self.decay_index
+        m = idx.numel()
+        sq = self._sqrt_wd if self._sqrt_wd.dim() else self._sqrt_wd.expand(theta.shape[0], 1)
+        r[:, -m:] = sq * theta[:, idx]
+        rows = torch.arange(J.shape[1] - m, J.shape[1], device=J.device)
+        J[:, rows, idx] = sq.expand(-1, m)
 
     def set_weight_decay(self, wd) -> None:
         wd = torch.as_tensor(wd, dtype=self.y.dtype, device=self.y.device)
@@ -102,7 +127,7 @@ class BatchedProblem:
     def residuals(self, theta: torch.Tensor) -> torch.Tensor:
         pred = self.y + self.bias_of(theta) - self.gain_of(theta) * self.F
         for i, term in enumerate(self.terms):
-            f = term.curve.evaluate(self.block(theta, i), term.u)
+            f = term.curve.evaluate(self.block(theta, i), term.u, term.u_both)
             pred = pred + (f if term.multiplier is None else term.multiplier * f)
         parts = [self.weights * pred]
         for i in self.penalised:
@@ -124,7 +149,7 @@ class BatchedProblem:
         J = theta.new_zeros(K, N, self.n_params)
         pred = self.y + self.bias_of(theta) - self.gain_of(theta) * self.F
         for i, term in enumerate(self.terms):
-            f, Ji = term.curve.evaluate_jacobian(self.block(theta, i), term.u)
+            f, Ji = term.curve.evaluate_jacobian(self.block(theta, i), term.u, term.u_both)
             if term.multiplier is not None:
                 f = term.multiplier * f
                 Ji = term.multiplier.unsqueeze(-1) * Ji
@@ -207,7 +232,7 @@ def _adam(problem, theta, steps, lr, stop_loss, log, progress, holder, check_eve
     return theta.detach()
 
 
-def _evidence_update(problem, theta, J):
+def _evidence_update(problem, theta, JtJ, r):
     """MacKay's evidence approximation (Foresee & Hagan's Bayesian regularisation for LM).
 
     With E_D the raw sum of squared data residuals over N samples and E_W the squared norm of the
@@ -215,26 +240,28 @@ def _evidence_update(problem, theta, J):
     beta = (N - gamma) / (2 E_D), where gamma = P_w - 2 alpha tr_w(H^-1) is the effective number
     of weights and H = 2 beta J_D^T J_D + 2 alpha I_w the Gauss-Newton Hessian. In the loss
     ||r||^2 + lambda ||w||^2 (r scaled by 1/sqrt(N)) this is lambda = alpha / (beta N).
+    ``JtJ`` and ``r`` are those LM already has at ``theta`` (decay rows included).
     """
-    K, _, P = J.shape
+    K, P, _ = JtJ.shape
     N = problem.y.shape[1]
-    n_used = (problem.weights > 0).sum(dim=1).to(theta.dtype)
-    Jd = J[:, :N, :] * torch.sqrt(n_used).view(K, 1, 1)  # Jacobian of the raw data residuals
-    rd = problem.residuals(theta)[:, :N] * torch.sqrt(n_used).view(K, 1)
-    E_D = rd.pow(2).sum(1)
+    n_used = problem.n_used
     idx = problem.decay_index
-    E_W = theta[:, idx].pow(2).sum(1).clamp_min(1e-12)
+    m = idx.numel()
     lam = torch.as_tensor(problem.weight_decay, dtype=theta.dtype).expand(K)
-    beta = (n_used - getattr(problem, "_gamma", torch.full((K,), float(idx.numel()), dtype=theta.dtype))) / (2 * E_D)
-    beta = beta.clamp_min(1e-12)
-    alpha = lam * beta * n_used
-    mask = torch.zeros(P, dtype=theta.dtype)
+    mask = torch.zeros(P, dtype=theta.dtype, device=theta.device)
     mask[idx] = 1.0
-    H = 2 * beta.view(K, 1, 1) * (Jd.transpose(1, 2) @ Jd) + torch.diag_embed(2 * alpha.view(K, 1) * mask + 1e-10)
-    Hinv = torch.linalg.inv(H)
-    tr_w = (torch.diagonal(Hinv, dim1=1, dim2=2) * mask).sum(1)
-    gamma = (idx.numel() - 2 * alpha * tr_w).clamp(1.0, float(idx.numel()))
-    problem._gamma = gamma
+    # data part of J^T J (in raw units): remove the decay rows' lambda * I_w, undo the 1/sqrt(N) scaling
+    JtJ_data = (JtJ - torch.diag_embed(lam.view(K, 1) * mask)) * n_used.view(K, 1, 1)
+    E_D = r[:, :N].pow(2).sum(1) * n_used
+    E_W = theta[:, idx].pow(2).sum(1).clamp_min(1e-12)
+    gamma_prev = problem.gamma if problem.gamma is not None else torch.full((K,), float(m), dtype=theta.dtype)
+    beta = ((n_used - gamma_prev) / (2 * E_D)).clamp_min(1e-12)
+    alpha = lam * beta * n_used
+    H = 2 * beta.view(K, 1, 1) * JtJ_data + torch.diag_embed(2 * alpha.view(K, 1) * mask + 1e-10)
+    Hinv_diag = torch.diagonal(torch.cholesky_inverse(torch.linalg.cholesky_ex(H)[0]), dim1=1, dim2=2)
+    tr_w = (Hinv_diag * mask).sum(1)
+    gamma = (m - 2 * alpha * tr_w).clamp(1.0, float(m))
+    problem.gamma = gamma
     alpha_new = gamma / (2 * E_W)
     beta_new = ((n_used - gamma) / (2 * E_D)).clamp_min(1e-12)
     return alpha_new / (beta_new * n_used), gamma
@@ -264,24 +291,25 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
         ok_solve = info == 0
         step = torch.where(ok_solve.unsqueeze(-1) & active.unsqueeze(-1), step, torch.zeros_like(step))
         trial = theta + step
-        r_new, J_new = problem.residuals_jacobian(trial)
+        r_new = problem.residuals(trial)
         cost_new = r_new.pow(2).sum(1)
         accept = active & ok_solve & torch.isfinite(cost_new) & (cost_new < cost)
         rel = torch.where(accept, (cost - cost_new) / cost.clamp_min(1e-300), torch.zeros_like(cost))
         theta = torch.where(accept.unsqueeze(-1), trial, theta)
-        r = torch.where(accept.unsqueeze(-1), r_new, r)
-        J = torch.where(accept.view(K, 1, 1), J_new, J)
         cost = torch.where(accept, cost_new, cost)
+        if bool(accept.any()):
+            # the Jacobian only changes where a step was taken: recompute it once, at the new point
+            r, J = problem.residuals_jacobian(theta)
         holder["theta"] = theta
         mu = torch.where(accept, (mu / 3).clamp_min(1e-12), (mu * 4).clamp_max(1e12))
         stalls = torch.where(accept & (rel < tol), stalls + 1, torch.where(accept, 0, stalls))
         if problem.bayesian and bool(accept.any()):
             # re-estimate the decay of the models that moved; the objective changes with it,
-            # so residuals, Jacobian and cost are recomputed under the new value
-            lam_new, gamma = _evidence_update(problem, theta, J)
+            # so the decay rows of the residuals and Jacobian are refreshed under the new value
+            lam_new, gamma = _evidence_update(problem, theta, J.transpose(1, 2) @ J, r)
             lam_old = torch.as_tensor(problem.weight_decay).expand(K)
             problem.set_weight_decay(torch.where(accept & active, lam_new, lam_old))
-            r, J = problem.residuals_jacobian(theta)
+            problem.refresh_decay_rows(theta, r, J)  # only the decay rows depend on the decay
             cost = r.pow(2).sum(1)
             log.effective_parameters = gamma.tolist()
         finished = (stalls >= 3) | (mu >= 1e12) | (cost < stop_loss)

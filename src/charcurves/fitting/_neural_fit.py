@@ -49,6 +49,7 @@ def fit_neural(
     device: str = "cpu",
     threads: int | None = None,
     progress: Callable | None = None,
+    chunk_models: int = 48,
 ) -> list[FittedModel]:
     """Fit K records (equal lengths) as one batched computation; returns K fitted models.
 
@@ -132,12 +133,23 @@ def fit_neural(
         theta0 = _warm_start(problem, theta0)
 
     with torch_threads(threads):
-        theta, log = train(problem, theta0, adam_steps=preset.adam_steps, adam_lr=preset.adam_lr,
-                           lm_max_iter=preset.lm_max_iter, lm_tol=preset.lm_tol, stop_loss=preset.stop_loss,
-                           progress=progress)
+        # Models are independent, so they train in chunks: the Jacobians of a chunk stay small
+        # enough for the cache and memory stays bounded, with results identical to one batch.
+        chunk = max(R, (chunk_models // R) * R)
+        parts, logs = [], []
+        for start in range(0, KR, chunk):
+            sub = problem.subset(slice(start, start + chunk))
+            th, lg = train(sub, theta0[start:start + chunk], adam_steps=preset.adam_steps,
+                           adam_lr=preset.adam_lr, lm_max_iter=preset.lm_max_iter, lm_tol=preset.lm_tol,
+                           stop_loss=preset.stop_loss, progress=progress)
+            parts.append(th)
+            logs.append((start, sub, lg))
+        theta = torch.cat(parts, dim=0)
+        log = _merge_logs([lg for _, _, lg in logs])
         with torch.no_grad():
-            data_loss = problem.data_loss(theta).double().cpu().numpy()
-            total_loss = problem.loss(theta).double().cpu().numpy()
+            total_loss = torch.cat([sub.loss(theta[s:s + sub.K]) for s, sub, _ in logs]).double().cpu().numpy()
+            decay = torch.cat([torch.as_tensor(sub.weight_decay, dtype=theta.dtype).expand(sub.K)
+                               for _, sub, _ in logs])
     elapsed = time.perf_counter() - t_start
     theta = theta.double().cpu()
 
@@ -183,8 +195,7 @@ def fit_neural(
             "total_loss": float(total_loss[k * R + best] * s_out**2),
             "train_seconds": elapsed / K,
             "batch_size": K,
-            "weight_decay": (problem.weight_decay[k * R + best].item() if problem.weight_decay.dim()
-                             else float(problem.weight_decay)),
+            "weight_decay": float(decay[k * R + best]),
             "effective_parameters": (log.effective_parameters[k * R + best] if log.effective_parameters else None),
         }
         model = FittedModel(template, method, fitted, g, offset, 0.0, info)
@@ -192,6 +203,19 @@ def fit_neural(
         model.loss = float(np.mean(resid**2))  # the combined model's own data loss
         models.append(model)
     return models
+
+
+def _merge_logs(logs):
+    from ._gradient import TrainingLog
+
+    out = TrainingLog()
+    out.adam_steps = max(lg.adam_steps for lg in logs)
+    out.lm_iterations = max(lg.lm_iterations for lg in logs)
+    out.stopped_by = ",".join(sorted({lg.stopped_by for lg in logs}))
+    out.interrupted = any(lg.interrupted for lg in logs)
+    out.effective_parameters = [g for lg in logs for g in lg.effective_parameters]
+    out.history = [h for lg in logs for h in lg.history]
+    return out
 
 
 def _warm_start(problem, theta0):

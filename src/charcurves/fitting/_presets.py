@@ -61,9 +61,9 @@ class TrainingPreset:
     scale_inputs: bool = True
     scale_output: bool = True
     warm_start: bool = True
-    adam_steps: int = 300
+    adam_steps: int = 150
     adam_lr: float = 1e-2
-    lm_max_iter: int = 150
+    lm_max_iter: int = 80
     lm_tol: float = 1e-7
     stop_loss: float = 1e-7
     n_starts: int = 6

@@ -114,12 +114,13 @@ def distill_curve(curve: FittedCurve, engine: SymbolicRegressionEngine | None = 
     parts = _neural_jump(curve, z) if operators is None else None
     if parts is not None:
         jump_vals, _mu, k = parts
-        res = engine.fit(z[:, None], y - jump_vals, ["z"], random_state=int(random_state), operators=POLY_OPERATORS)
+        res = engine.fit(z[:, None], y - jump_vals, ["z"], random_state=int(random_state), operators=POLY_OPERATORS,
+                         context="curve")
         expr, mse = _refit_with_jump(res.expression, k, z, y)
         mode = "smooth part + learned jump"
     else:
         ops = tuple(operators) if operators is not None else (TANH_OPERATORS if jump else POLY_OPERATORS)
-        res = engine.fit(z[:, None], y, ["z"], random_state=int(random_state), operators=ops)
+        res = engine.fit(z[:, None], y, ["z"], random_state=int(random_state), operators=ops, context="curve")
         expr, mse = res.expression, res.mse
         mode = "whole curve"
     if expr.free_symbols - {zs}:  # pragma: no cover - engines only see z

@@ -56,12 +56,19 @@ POLY_OPERATORS = ("add", "sub", "mul")
 TANH_OPERATORS = ("add", "sub", "mul", "tanh")
 
 #: Model-selection criteria on the Pareto front; see :func:`select_model`.
-SELECTION_CRITERIA = ("parsimony", "knee", "best", "bic")
-#: Exchange rate of the "parsimony" criterion: one unit of complexity must lower the MSE by a
-#: factor exp(0.5) = 1.65 (a term ``c*z**3`` costs 8 units: a factor 55).
+SELECTION_CRITERIA = ("auto", "knee", "bic", "parsimony", "best")
+#: What "auto" means per kind of fit (measured, the Notes of this module): samples of a
+#: learned curve carry small *systematic* error, so an information criterion that assumes
+#: independent noise keeps adding terms that follow the curve's wiggles, while "knee" stops at
+#: the structure; measured records carry independent noise, where BIC is right and "knee" can
+#: stop before a small true term (the viscous part of friction under 20 dB noise).
+AUTO_SELECTION = {"curve": "knee", "data": "bic"}
+#: "bic": the simplest model within this BIC difference of the minimum.
+BIC_MARGIN = 10.0
+#: "parsimony": a fixed exchange rate, one unit of complexity must lower the MSE by exp(0.5).
 PARSIMONY = 0.5
 
-#: Defaults of ``sr_options``. Chosen by measurement (docs/symbolic-regression.md): with the
+#: Defaults of ``sr_options``. Chosen by measurement (the Notes of this module): with the
 #: search on a 400-point subsample, one Operon population of 300 evolved for 40 generations
 #: recovers the true forms of the benchmark curves in ~1-2 s per curve on one core.
 DEFAULT_SR_OPTIONS: dict[str, Any] = {
@@ -71,7 +78,7 @@ DEFAULT_SR_OPTIONS: dict[str, Any] = {
     "population_size": 300,
     "max_size": 20,
     "operators": "auto",
-    "selection": "parsimony",
+    "selection": "auto",
 }
 SR_OPTION_KEYS = tuple(DEFAULT_SR_OPTIONS)
 _ENGINES = ("operon", "pysr")
@@ -373,32 +380,53 @@ def _pareto(cands: list[_Candidate]) -> list[_Candidate]:
     return out
 
 
-def select_model(front: Sequence, criterion: str, n: int, var_y: float) -> int:
+def select_model(front: Sequence, criterion: str, n: int, var_y: float, context: str = "data") -> int:
     """Index of the chosen model on a Pareto front (simplest first, MSE strictly decreasing).
 
-    Criteria (MSE below ``1e-12 var(y)`` counts as that floor: round-off is not structure):
+    Parameters
+    ----------
+    front : sequence
+        Entries with ``complexity``, ``mse`` and ``expression`` (or ``n_constants``).
+    criterion : str
+        One of :data:`SELECTION_CRITERIA`.
+    n : int
+        Number of points the MSEs were computed on.
+    var_y : float
+        Variance of the target (sets the round-off floor).
+    context : {"data", "curve"}
+        What was fitted, for ``criterion="auto"`` (:data:`AUTO_SELECTION`).
 
-    ``"parsimony"``
-        Minimise ``log(MSE) + 0.5 complexity``: every unit of complexity must buy a fixed factor
-        exp(0.5) of MSE, so a missing true term (a factor 10-1000 on samples of a learned curve)
-        is added while terms that only follow the learned curve's wiggles (a factor 1-3) are not.
-        Scale free (a ratio of MSEs), and unlike "knee" it does not stop at the single steepest
-        step (friction: the jump alone explains 99 % of the variance, the viscous term the rest).
+    Notes
+    -----
+    MSE below ``1e-12 var(y)`` counts as that floor: round-off is not structure.
 
+    ``"auto"`` (default)
+        "knee" for samples of a learned curve (post-SR), "bic" for measured records (SR, SR-CC).
     ``"knee"``
         The largest relative MSE drop per added complexity,
         ``-Δlog(MSE) / Δcomplexity`` between neighbours on the front (PySR's "score"): the
         step after which adding terms buys little.
+    ``"parsimony"``
+        Minimise ``log(MSE) + 0.5 complexity`` (a fixed exchange rate): fine on samples of a
+        learned curve, but on noisy data the total gain of the true model can be smaller than
+        its price and a constant wins.
     ``"best"``
         PySR's default: the highest score among models whose MSE is within 1.5x of the most
         accurate one.
     ``"bic"``
-        ``N log(MSE) + k log(N)`` with k the number of numeric constants; appropriate for
-        independent noise, but on samples of a smooth learned curve (systematic, correlated
-        error) it keeps adding terms.
+        ``N log(MSE) + k log(N)`` with k the number of numeric constants; the pick is the
+        simplest model whose BIC is within 10 of the minimum (a difference above 10 is "very
+        strong" evidence, Kass & Raftery 1995): the search tries many extra terms, and the best
+        of them fits the noise by chance more often than one pre-chosen term would.
+        Appropriate for independent noise; on samples of a smooth learned curve (systematic,
+        correlated error) it keeps adding terms.
     """
     if criterion not in SELECTION_CRITERIA:
         raise ConfigError(f"unknown selection criterion {criterion!r}; choose one of {', '.join(SELECTION_CRITERIA)}")
+    if criterion == "auto":
+        if context not in AUTO_SELECTION:
+            raise ConfigError(f"context must be one of {', '.join(AUTO_SELECTION)}, got {context!r}")
+        criterion = AUTO_SELECTION[context]
     if len(front) == 1:
         return 0
     floor = max(_REL_MSE_FLOOR * float(var_y), 1e-300)
@@ -407,8 +435,10 @@ def select_model(front: Sequence, criterion: str, n: int, var_y: float) -> int:
     if criterion == "parsimony":
         return int(np.argmin(np.log(mse) + PARSIMONY * cx))
     if criterion == "bic":
-        k = np.array([getattr(f, "n_constants", f.complexity) for f in front], dtype=float)
-        return int(np.argmin(n * np.log(mse) + k * np.log(n)))
+        k = np.array([f.n_constants if hasattr(f, "n_constants") else _n_constants(f.expression)
+                      for f in front], dtype=float)
+        bic = n * np.log(mse) + k * np.log(n)
+        return int(np.flatnonzero(bic <= bic.min() + BIC_MARGIN)[0])
     score = np.zeros(len(front))
     score[1:] = -np.diff(np.log(mse)) / np.maximum(np.diff(cx), 1.0)
     if criterion == "best":
@@ -451,7 +481,8 @@ class SymbolicRegressionEngine(abc.ABC):
     operators : sequence of str
         Default operator set (:data:`OPERATORS`); ``fit`` can override it per call.
     selection : str
-        Criterion on the Pareto front (:func:`select_model`).
+        Criterion on the Pareto front (:func:`select_model`); "auto" depends on the fit's
+        ``context``.
     max_points : int
         The search sees at most this many evenly spaced points (selection and polishing use all).
     """
@@ -489,7 +520,7 @@ class SymbolicRegressionEngine(abc.ABC):
         """Run the search; return candidate sympy expressions (in ``symbols``) and details."""
 
     def fit(self, X, y, names: Sequence[str], *, random_state: int = 0,
-            operators: Sequence[str] | None = None) -> SRResult:
+            operators: Sequence[str] | None = None, context: str = "data") -> SRResult:
         """Search y ≈ f(X) and pick one expression.
 
         Parameters
@@ -501,6 +532,9 @@ class SymbolicRegressionEngine(abc.ABC):
         random_state : int
         operators : sequence of str, optional
             Override of the engine's operator set for this call.
+        context : {"data", "curve"}
+            "curve" when y are samples of a learned curve (post-SR), "data" for measured
+            records; decides what ``selection="auto"`` means (:data:`AUTO_SELECTION`).
 
         Returns
         -------
@@ -529,18 +563,62 @@ class SymbolicRegressionEngine(abc.ABC):
         mean_expr = sp.Float(float(np.mean(y)), 15)
         cands.append(_Candidate(mean_expr, var_y, 1, 1, frozenset([sp.Integer(1)])))
         front = _pareto(cands)
-        pick = select_model(front, self.selection, X.shape[0], var_y)
+        pick = select_model(front, self.selection, X.shape[0], var_y, context)
+        criterion = AUTO_SELECTION.get(context, "knee") if self.selection == "auto" else self.selection
         chosen = front[pick]
         expr, mse = polish_constants(chosen.expression, symbols, X, y)
-        expr = _tidy(expr)
+        expr = _tidy(_desaturate(expr, symbols, X))
+        vals = _eval(expr, symbols, X)
+        if vals is not None:
+            mse = float(np.mean((vals - y) ** 2))
         info.update({"n_candidates": len(cands), "n_search_models": len(exprs), "front_index": pick,
                      "n_points_search": int(idx.size)})
         return SRResult(
             expression=expr, mse=mse, complexity=expression_complexity(expr),
             front=[FrontEntry(c.complexity, c.mse, c.expression) for c in front],
-            seconds=time.perf_counter() - t0, search_seconds=search_seconds, criterion=self.selection,
+            seconds=time.perf_counter() - t0, search_seconds=search_seconds, criterion=criterion,
             engine=self.name, operators=tuple(ops), info=info,
         )
+
+
+def _desaturate(expr, symbols, X):
+    """Simplify saturated steps: ``tanh(k s)`` with ``|k s| >= 20`` on every sample.
+
+    A jump sampled without points inside it leaves k bounded only from below, and polishing
+    drifts it to absurd values (1e8); at ``|k s| >= 20`` tanh equals sign(s) to double precision,
+    so k is lowered to ``20 / min|s|`` (same values on the data, a less stiff forward model), and
+    ``tanh(c tanh(k s))`` of a saturated step is rewritten ``tanh(c) tanh(k s)`` (equal wherever
+    the step is +-1 or 0).
+    """
+    import sympy as sp
+
+    cols = {s: X[:, i] for i, s in enumerate(symbols)}
+    saturated = set()
+    rep = {}
+    for t in expr.atoms(sp.tanh):
+        c, s = t.args[0].as_coeff_Mul()
+        if s not in cols or not c.is_Float:
+            continue
+        a = np.abs(cols[s])
+        a = a[a > 0]
+        if a.size == 0:
+            continue
+        k_min = 20.0 / float(a.min())
+        if abs(float(c)) >= k_min:
+            new = sp.tanh(sp.Float(math.copysign(k_min, float(c)), 15) * s)
+            rep[t] = new
+            saturated.add(new)
+    out = expr.xreplace(rep) if rep else expr
+    for _ in range(4):  # unwrap nesting level by level
+        rep = {}
+        for t in out.atoms(sp.tanh):
+            c, inner = t.args[0].as_coeff_Mul()
+            if inner in saturated and c.is_Number:
+                rep[t] = sp.Float(math.tanh(float(c)), 15) * inner
+        if not rep:
+            break
+        out = out.xreplace(rep)
+    return out
 
 
 def _tidy(expr):
@@ -606,9 +684,9 @@ class OperonEngine(SymbolicRegressionEngine):
                                   weight, so ``c*x`` is one node where PySR counts 3)
     ``operators``                 ``allowed_symbols`` (+ constant, variable)
     (fixed)                       ``objectives=["mse", "length"]`` (NSGA-II, L2 loss), Levenberg-
-                                  Marquardt on constants (``optimizer_iterations``),
-                                  ``max_evaluations = populations * population_size *
-                                  (generations + 1)``, ``n_threads=1``, ``random_state``
+                                  Marquardt on constants (``optimizer_iterations``, 10),
+                                  no evaluation budget (the generations bound the search),
+                                  ``n_threads=1``, ``random_state``
     ============================  ==============================================================
 
     Operon's own linear scaling adds a scale and an intercept to every model; the intercept is
@@ -686,14 +764,21 @@ class PySREngine(SymbolicRegressionEngine):
         binary = [_PYSR_BINARY[o] for o in operators if o in _PYSR_BINARY]
         unary = [o for o in operators if o not in _PYSR_BINARY]
         safe = [f"x{i}" for i in range(X.shape[1])]
+        import inspect
+
+        accepted = set(inspect.signature(PySRRegressor.__init__).parameters)
+        kwargs = dict(niterations=self.generations, populations=self.populations,
+                      population_size=self.population_size, maxsize=self.max_size,
+                      binary_operators=binary, unary_operators=unary, model_selection="best",
+                      random_state=int(random_state), deterministic=True, progress=False, verbosity=0)
+        # L2 loss and serial (deterministic) evaluation are spelled differently across versions
+        kwargs["elementwise_loss" if "elementwise_loss" in accepted else "loss"] = "L2DistLoss()"
+        if "parallelism" in accepted:
+            kwargs["parallelism"] = "serial"
+        else:
+            kwargs.update(procs=0, multithreading=False)
         try:
-            reg = PySRRegressor(
-                niterations=self.generations, populations=self.populations,
-                population_size=self.population_size, maxsize=self.max_size,
-                binary_operators=binary, unary_operators=unary, elementwise_loss="L2DistLoss()",
-                model_selection="best", random_state=int(random_state), deterministic=True,
-                parallelism="serial", progress=False, verbosity=0, temp_equation_file=True,
-            )
+            reg = PySRRegressor(**{k: v for k, v in kwargs.items() if k in accepted})
             reg.fit(X, y, variable_names=safe)
         except ConfigError:
             raise

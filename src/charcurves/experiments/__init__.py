@@ -1,0 +1,77 @@
+"""Experiments: noise sweeps, forward validation sets and a resumable results store.
+
+Public API
+----------
+Sweep, paper_grid(), quick_grid()          what to run (systems × methods × SNR × realisations)
+run_sweep(sweep, store_path, ...)          run what the store lacks (local processes or Ray)
+ResultsStore(path)                         SQLite rows, completed_keys(), to_dataframe(), to_csv()
+make_validation_cases(system, n, seed=)    random conditions whose true trajectory stays in the box
+evaluate_forward(model, system, cases)     t_sep (ε = 0.2, censored) and RMSE[x] per case
+
+Examples
+--------
+>>> from charcurves.experiments import Sweep, quick_grid
+>>> sweep = Sweep(systems=["duffing"], methods=["parametric", "nn-cc"], **quick_grid())
+>>> len(sweep.jobs())
+12
+"""
+
+from ._runner import Job as Job
+from ._runner import RunSettings as RunSettings
+from ._runner import run_unit as run_unit
+from ._store import KEY_COLUMNS as KEY_COLUMNS
+from ._store import VALUE_COLUMNS as VALUE_COLUMNS
+from ._store import ResultsStore as ResultsStore
+from ._store import job_key as job_key
+from ._sweep import EXECUTORS as EXECUTORS
+from ._sweep import PAPER_SNR_DB as PAPER_SNR_DB
+from ._sweep import QUICK_SNR_DB as QUICK_SNR_DB
+from ._sweep import Sweep as Sweep
+from ._sweep import SweepReport as SweepReport
+from ._sweep import dataset_seed as dataset_seed
+from ._sweep import default_fit_options as default_fit_options
+from ._sweep import paper_grid as paper_grid
+from ._sweep import plan_units as plan_units
+from ._sweep import quick_grid as quick_grid
+from ._sweep import run_sweep as run_sweep
+from ._validation import HORIZONS as HORIZONS
+from ._validation import VALIDATION_RANGES as VALIDATION_RANGES
+from ._validation import CaseResult as CaseResult
+from ._validation import ForwardEvaluation as ForwardEvaluation
+from ._validation import ValidationCase as ValidationCase
+from ._validation import ValidationSet as ValidationSet
+from ._validation import cached_validation_cases as cached_validation_cases
+from ._validation import evaluate_forward as evaluate_forward
+from ._validation import make_validation_cases as make_validation_cases
+from ._validation import training_box as training_box
+
+__all__ = [
+    "CaseResult",
+    "EXECUTORS",
+    "ForwardEvaluation",
+    "HORIZONS",
+    "Job",
+    "KEY_COLUMNS",
+    "PAPER_SNR_DB",
+    "QUICK_SNR_DB",
+    "ResultsStore",
+    "RunSettings",
+    "Sweep",
+    "SweepReport",
+    "VALIDATION_RANGES",
+    "VALUE_COLUMNS",
+    "ValidationCase",
+    "ValidationSet",
+    "cached_validation_cases",
+    "dataset_seed",
+    "default_fit_options",
+    "evaluate_forward",
+    "job_key",
+    "make_validation_cases",
+    "paper_grid",
+    "plan_units",
+    "quick_grid",
+    "run_sweep",
+    "run_unit",
+    "training_box",
+]

@@ -1,0 +1,248 @@
+"""Symbolic regression: engines, selection, post-SR, SR and SR-CC (charcurves.symbolic)."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from charcurves._errors import ConfigError
+from charcurves.curves._fitted import SymbolicFittedCurve
+from charcurves.data import Trajectory
+from charcurves.symbolic import (
+    FrontEntry,
+    PySREngine,
+    decompose,
+    distill_curve,
+    distill_model,
+    expression_complexity,
+    fit_sr,
+    fit_sr_cc,
+    make_engine,
+    polish_constants,
+    select_model,
+)
+from charcurves.symbolic._engine import parse_infix
+from charcurves.templates import SeparableTemplate
+
+Z = sp.Symbol("z")
+
+
+def _terms(expr) -> dict:
+    """{basis: coefficient} of an expanded expression in z."""
+    out = {}
+    for t in sp.Add.make_args(sp.expand(expr)):
+        c, b = t.as_coeff_Mul()
+        out[b] = out.get(b, 0.0) + float(c)
+    return out
+
+
+# ------------------------------------------------------------------ engine and options
+def test_make_engine_rejects_unknown_options():
+    with pytest.raises(ConfigError, match="valid: engine"):
+        make_engine({"niterations": 10})
+    with pytest.raises(ConfigError, match="operon, pysr"):
+        make_engine({"engine": "gplearn"})
+    with pytest.raises(ConfigError, match="choose from"):
+        make_engine({"operators": ["add", "frobnicate"]})
+    with pytest.raises(ConfigError, match="parsimony"):
+        make_engine({"selection": "aic"})
+    with pytest.raises(ConfigError, match="generations"):
+        make_engine({"generations": 0})
+    eng = make_engine({"operators": "add,mul,tanh", "generations": 5})
+    assert eng.operators == ("add", "mul", "tanh") and eng.generations == 5
+
+
+@pytest.mark.skipif(importlib.util.find_spec("pysr") is not None, reason="pysr is installed here")
+def test_pysr_engine_missing_gives_clear_error():
+    eng = make_engine({"engine": "pysr"})
+    assert isinstance(eng, PySREngine)
+    z = np.linspace(-1, 1, 50)
+    with pytest.raises(ConfigError, match=r"pip install 'charcurves\[pysr\]'.*engine='operon'"):
+        eng.fit(z[:, None], z, ["z"], random_state=0)
+
+
+def test_parse_infix_is_safe_and_maps_names():
+    x, v = sp.symbols("x v")
+    e = parse_infix("((-0.5) + (2.0 * (X1 ^ 2))) * tanh(3.0 * X2)", [x, v])
+    f = sp.lambdify([x, v], e)
+    assert f(0.7, -0.2) == pytest.approx((-0.5 + 2 * 0.7**2) * np.tanh(-0.6))
+    with pytest.raises(ValueError):
+        parse_infix("__import__('os').system('true')", [x])
+
+
+def test_complexity_counts_powers_as_products():
+    assert expression_complexity(Z) == 1
+    assert expression_complexity(Z**3) == 5
+    assert expression_complexity(sp.Float(2.0) * Z) == 3
+    assert expression_complexity(sp.tanh(sp.Float(5.0) * Z)) == 4
+
+
+def test_select_model_criteria():
+    # a clean structure at complexity 11, then wiggle-fitting terms that buy little
+    front = [FrontEntry(1, 1.0, None), FrontEntry(7, 0.38, None), FrontEntry(11, 6e-5, None),
+             FrontEntry(23, 2e-5, None), FrontEntry(39, 6e-7, None)]
+    for crit in ("parsimony", "knee"):
+        assert select_model(front, crit, 1000, 1.0) == 2
+    assert select_model(front, "best", 1000, 1.0) == 4  # PySR's default keeps the most accurate here
+    with pytest.raises(ConfigError):
+        select_model(front, "nope", 1000, 1.0)
+
+
+def test_polish_constants_makes_coefficients_precise():
+    z = np.linspace(-1, 1, 300)
+    expr = sp.Float(0.9) * Z**3 + sp.Float(-1.1) * Z
+    out, mse = polish_constants(expr, [Z], z[:, None], 1.25 * z**3 - 0.75 * z)
+    t = _terms(out)
+    assert t[Z**3] == pytest.approx(1.25, rel=1e-9) and t[Z] == pytest.approx(-0.75, rel=1e-9)
+    assert mse < 1e-20
+
+
+def test_decompose_splits_and_flags_mixed_terms():
+    x, v = sp.symbols("x v")
+    parts, const, mixed = decompose(0.3 * v + x**3 - x + 0.2 + 0.1 * x * v, {"f1": v, "f2": x})
+    assert sp.nsimplify(parts["f1"]) == sp.Rational(3, 10) * v and sp.nsimplify(parts["f2"]) == x**3 - x
+    assert const == pytest.approx(0.2) and len(mixed) == 1
+
+
+# ------------------------------------------------------------------ post-SR
+def test_post_sr_clean_duffing_curve_recovers_terms():
+    curve = SymbolicFittedCurve("f2", "x", (-1.5, 1.45), Z**3 - Z)
+    out = distill_curve(curve, make_engine({}), random_state=0)
+    t = _terms(out.expression())
+    assert set(t) == {Z, Z**3}
+    assert t[Z**3] == pytest.approx(1.0, rel=0.02) and t[Z] == pytest.approx(-1.0, rel=0.02)
+    assert out.name == "f2" and out.domain == (-1.5, 1.45)
+    assert out.meta["seconds"] < 5.0 * 3  # generous: shared CI machines
+
+
+def test_post_sr_friction_curve_gives_steep_tanh():
+    curve = SymbolicFittedCurve("f1", "x'", (-0.87, 0.87), 0.386 * Z + 0.801 * sp.tanh(500 * Z))
+    out = distill_curve(curve, make_engine({}), random_state=0)
+    t = _terms(out.expression())
+    tanh_terms = [(c, b) for b, c in t.items() if isinstance(b, sp.tanh)]
+    assert len(tanh_terms) == 1
+    height, arg = tanh_terms[0][0], tanh_terms[0][1].args[0]
+    k = float(arg / Z)
+    assert abs(height) == pytest.approx(0.801, rel=0.05)
+    assert abs(k) > 50
+    assert t[Z] == pytest.approx(0.386, rel=0.05)
+
+
+def test_distill_model_gauge_info_and_roundtrip(tmp_path):
+    from charcurves.curves._fitted import BasisFittedCurve
+    from charcurves.fitting._model import FittedModel, load_model
+
+    tmpl = SeparableTemplate()
+    # f2 carries a constant 0.05 that the gauge must move: f2(0) = 0 afterwards
+    curves = {"f1": BasisFittedCurve("f1", "x'", (-1.0, 1.0), ["z"], [0.3]),
+              "f2": BasisFittedCurve("f2", "x", (-1.5, 1.5), ["z", "z**3", "1"], [-1.0, 1.0, 0.05])}
+    model = FittedModel(tmpl, "parametric", curves, 1.0, 0.0, 1e-3, {"seed": 0})
+    out = distill_model(model, sr_options={"generations": 20}, random_state=1)
+    assert all(isinstance(c, SymbolicFittedCurve) for c in out.curves.values())
+    assert abs(float(out.curves["f2"](np.array([0.0]))[0])) < 1e-9
+    assert out.info["loss_before_distillation"] == 1e-3 and not out.info["loss_recomputed"]
+    assert set(out.info["post_sr"]) == {"f1", "f2"} and "criterion" in out.info["post_sr"]["f1"]
+    eq = out.to_sympy()
+    assert eq is not None
+    z = np.linspace(-1.4, 1.4, 50)
+    assert np.allclose(out.curves["f2"](z), z**3 - z, atol=1e-3)
+    out.save(tmp_path / "m")
+    back = load_model(tmp_path / "m")
+    assert np.allclose(back.curves["f2"](z), out.curves["f2"](z))
+    assert out.result_dict()["curves"]["f1"]["expression"] is not None
+
+
+# ------------------------------------------------------------------ SR and SR-CC
+def test_fit_sr_decomposable_on_duffing(duffing):
+    system, clean = duffing
+    model = fit_sr(clean, SeparableTemplate(), symmetry={"f1": "none", "f2": "none"}, options={},
+                   sr_options={}, random_state=0, method="sr")
+    assert model.info["decomposable"] and model.info["mixed_terms"] == []
+    t1, t2 = _terms(model.curves["f1"].expression()), _terms(model.curves["f2"].expression())
+    assert set(t1) == {Z} and set(t2) == {Z, Z**3}
+    assert t1[Z] == pytest.approx(0.3, rel=0.02) and t2[Z**3] == pytest.approx(1.0, rel=0.02)
+
+
+def test_fit_sr_flags_mixed_term(duffing):
+    _, clean = duffing
+    x, v, F = (np.asarray(c) for c in (clean.x, clean.v, clean.F))
+    a = F - 0.3 * v - (-x + x**3) - 0.3 * x * v
+    traj = Trajectory(clean.t, x, F, v, a)
+    model = fit_sr(traj, SeparableTemplate(), symmetry=None, options={}, sr_options={}, random_state=0, method="sr")
+    assert model.info["decomposable"] is False
+    assert any("x*x'" in m or "x'*x" in m for m in model.info["mixed_terms"])
+    # the separable part is still returned as symbolic curves
+    assert model.is_symbolic
+
+
+def test_fit_sr_cc_separable_by_construction(duffing):
+    system, clean = duffing
+    model = fit_sr_cc(clean, SeparableTemplate(), symmetry=None, options={}, sr_options={}, random_state=0,
+                      method="sr-cc")
+    assert model.info["decomposable"] and model.info["mixed_terms"] == []
+    for name, c in model.curves.items():
+        assert c.expression().free_symbols <= {Z}
+    errs = {n: float(np.sqrt(np.mean((c(c.grid()) - system.true_curves()[n](c.grid())) ** 2)))
+            for n, c in model.curves.items()}
+    # clean data: the curves come out essentially exact (stated tolerance 1e-3 RMSE)
+    assert errs["f1"] < 1e-3 and errs["f2"] < 1e-3
+    assert model.info["train_seconds"] < 60
+
+
+def test_fit_sr_free_gain(duffing):
+    _, clean = duffing
+    F = np.asarray(clean.F)
+    traj = Trajectory(clean.t, clean.x, F / 2.0, clean.v, clean.a)  # true gain 2
+    model = fit_sr(traj, SeparableTemplate(free_gain=True), symmetry=None, options={}, sr_options={},
+                   random_state=0, method="sr")
+    assert model.gain == pytest.approx(2.0, rel=0.02)
+
+
+def test_estimator_runs_sr_methods(duffing):
+    import charcurves as cc
+
+    _, clean = duffing
+    model = cc.fit(clean, method="sr", random_state=0)
+    assert model.method == "sr" and model.is_symbolic
+    res = model.result_dict()
+    assert res["info"]["decomposable"] is True and res["curves"]["f2"]["expression"]
+
+
+# ------------------------------------------------------------------ acceptance (slow)
+@pytest.mark.slow
+def test_acceptance_duffing_20db_post_sr():
+    import charcurves as cc
+    from charcurves.data import corrupt
+    from charcurves.systems import get_system
+
+    system = get_system("duffing")
+    clean = system.simulate()
+    good, rmse = 0, []
+    for s in range(5):
+        model = cc.fit(corrupt(clean, 20, seed=s), method="nn-cc+sym+post-sr", random_state=s)
+        t1, t2 = _terms(model.curves["f1"].expression()), _terms(model.curves["f2"].expression())
+        if set(t1) == {Z} and set(t2) == {Z, Z**3}:
+            ok = (abs(t1[Z] / 0.3 - 1) < 0.05 and abs(t2[Z] / -1 - 1) < 0.05 and abs(t2[Z**3] - 1) < 0.05)
+            good += ok
+        errs = cc.curve_errors(model, system.true_curves())
+        rmse.append(np.mean(list(errs.values())))
+    assert good >= 4
+    assert np.mean(rmse) <= 3e-3
+
+
+@pytest.mark.slow
+def test_acceptance_stick_slip_20db_post_sr():
+    import charcurves as cc
+    from charcurves.data import corrupt
+    from charcurves.systems import get_system
+
+    system = get_system("stick-slip")
+    model = cc.fit(corrupt(system.simulate(), 20, seed=0), method="nn-cc+sym+post-sr", random_state=0)
+    t1 = _terms(model.curves["f1"].expression())
+    c = t1[Z]
+    mu = [coef for b, coef in t1.items() if isinstance(b, sp.tanh)]
+    assert len(mu) == 1
+    assert c == pytest.approx(0.386, rel=0.10) and mu[0] == pytest.approx(0.801, rel=0.10)
