@@ -105,7 +105,7 @@ def main():
                     csv = fh.name
                 noisy.to_csv(csv)
                 wall, res = our_fit(csv, method, seed)
-                ours.append((rmse_of(res, "f1", truth), rmse_of(res, "f2", truth), wall))
+                ours.append((rmse_of(res, "f1", truth["f1"]), rmse_of(res, "f2", truth["f2"]), wall))
                 if seed == 0:
                     epochs = 20000 if args.paper_full else args.paper_epochs
                     sec, p1, p2, gv, gx = paper_protocol(noisy, sym, epochs)

@@ -170,6 +170,34 @@ def test_auto_jump_stays_off_without_sticking_and_in_the_paper_preset(duffing_20
     assert not off.curves["f1"].spec.jump
 
 
+@pytest.mark.parametrize("variant", ["smooth", "scripts"])
+def test_auto_jump_detects_dry_friction_without_sticking(variant):
+    from charcurves.fitting._estimator import JUMP_F_THRESHOLD, dry_friction_test
+    from charcurves.systems import get_system
+    from charcurves.templates import SeparableTemplate
+
+    system = get_system("stick-slip", variant)
+    clean = system.simulate()
+    assert not system.sticking_mask(clean).any()
+    for snr in (40, 0):
+        F, mu = dry_friction_test(corrupt(clean, snr, seed=1), SeparableTemplate())
+        assert F > JUMP_F_THRESHOLD and mu > 0.3
+    model = cc.fit(corrupt(clean, 20, seed=0), method="nn-cc+sym", random_state=0, threads=1)
+    assert model.curves["f1"].spec.jump
+    errs = curve_errors(model, system.true_curves())
+    assert errs["f1"] < 1.5e-2 and errs["f2"] < 6e-3, errs
+
+
+def test_no_jump_is_detected_on_smooth_curves(duffing):
+    from charcurves.fitting._estimator import JUMP_F_THRESHOLD, dry_friction_test
+    from charcurves.templates import SeparableTemplate
+
+    _, clean = duffing
+    for seed in range(5):
+        F, _ = dry_friction_test(corrupt(clean, 0, seed=seed), SeparableTemplate())
+        assert F < JUMP_F_THRESHOLD
+
+
 def test_save_load_round_trip_gives_identical_predictions(tmp_path, duffing_20db):
     preset = PRESETS["default"].replace(n_starts=2, adam_steps=30, lm_max_iter=5)
     model = cc.fit(duffing_20db, method="nn-cc+sym", jump="f1", preset=preset, threads=1)

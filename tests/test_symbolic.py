@@ -131,6 +131,31 @@ def test_post_sr_friction_curve_gives_steep_tanh():
     assert t[Z] == pytest.approx(0.386, rel=0.05)
 
 
+def test_post_sr_neural_jump_curve_by_parts():
+    """A neural curve with a learned jump: the jump is kept as muN tanh(k z), SR fits the rest."""
+    from charcurves.curves._fitted import NeuralFittedCurve
+    from charcurves.curves._neural import NeuralCurve
+
+    spec = NeuralCurve(hidden=(4,), symmetry="odd", jump=True)
+    sl = spec.slices()
+    theta = np.zeros(spec.n_params)
+    theta[sl["linear"]] = 0.386
+    theta[sl["jump_height"]] = 0.801
+    theta[sl["jump_log_eps"]] = np.log(1e-7)
+    curve = NeuralFittedCurve("f1", "x'", (-0.87, 0.87), spec, theta, in_scale=1.0, out_scale=1.0)
+    out = distill_curve(curve, make_engine({}), random_state=0)
+    t = _terms(out.expression())
+    steps = [(b, c) for b, c in t.items() if isinstance(b, sp.tanh)]
+    assert set(t) - {b for b, _ in steps} == {Z} and len(steps) == 1
+    assert t[Z] == pytest.approx(0.386, rel=0.01) and steps[0][1] == pytest.approx(0.801, rel=0.01)
+    k = float(steps[0][0].args[0] / Z)
+    # the jump (width 1e-7) is narrower than the grid: k is lowered to saturate at the grid point
+    # nearest 0, and the closed form reproduces the curve on every grid point
+    assert k == pytest.approx(20 / np.abs(curve.grid()).min(), rel=1e-6) and k < 1e7
+    assert np.max(np.abs(out(curve.grid()) - curve(curve.grid()))) < 1e-3
+    assert out.meta["mode"] == "smooth part + learned jump"
+
+
 def test_distill_model_gauge_info_and_roundtrip(tmp_path):
     from charcurves.curves._fitted import BasisFittedCurve
     from charcurves.fitting._model import FittedModel, load_model
@@ -176,6 +201,19 @@ def test_fit_sr_flags_mixed_term(duffing):
     assert any("x*x'" in m or "x'*x" in m for m in model.info["mixed_terms"])
     # the separable part is still returned as symbolic curves
     assert model.is_symbolic
+
+
+def test_fit_sr_stick_slip_gets_friction_law():
+    from charcurves.systems import get_system
+
+    clean = get_system("stick-slip").simulate()
+    model = fit_sr(clean, SeparableTemplate(), symmetry=None, options={}, sr_options={}, random_state=0, method="sr")
+    assert model.info["operators"] == ["add", "sub", "mul", "tanh"]  # sticking -> tanh allowed
+    t1 = _terms(model.curves["f1"].expression())
+    steps = [c for b, c in t1.items() if isinstance(b, sp.tanh)]
+    assert len(steps) == 1 and steps[0] == pytest.approx(0.801, rel=0.02)
+    assert t1[Z] == pytest.approx(0.386, rel=0.02)
+    assert model.info["n_sticking_samples"] > 0
 
 
 def test_fit_sr_cc_separable_by_construction(duffing):

@@ -72,6 +72,8 @@ class RunSettings:
     time_budget_per_job: float | None = None
     max_attempts: int = 1000
     max_failed_cases: int | None = None
+    sim_rtol: float | None = None
+    sim_atol: float | None = None
     torch_threads: int | None = 1
     save_models_dir: str | None = None
 
@@ -291,11 +293,14 @@ def _score(job: Job, model, settings: RunSettings, started: str, fit_seconds: fl
         if settings.time_budget_per_job is not None:
             budget = max(0.0, float(settings.time_budget_per_job) - fit_seconds)
         clean = _clean(job.system, job.variant, float(job.t_end), int(job.n_points))
+        t_cases = time.perf_counter()
         cases = cached_validation_cases(system, settings.forward_cases, seed=job.validation_seed,
                                         max_attempts=settings.max_attempts, box=training_box(clean))
+        extra["validation_set_seconds"] = time.perf_counter() - t_cases  # ~0 when cached in this process
         ev = evaluate_forward(model, system, cases, eps=settings.eps, box_margin=settings.box_margin,
                               case_time_budget=settings.case_time_budget, time_budget=budget,
-                              max_failed=settings.max_failed_cases)
+                              max_failed=settings.max_failed_cases, rtol=settings.sim_rtol,
+                              atol=settings.sim_atol)
         s = ev.summary()
         row.update(t_sep_mean=s["t_sep_mean"], rmse_x_mean=s["rmse_x_mean"], n_cases=s["n_cases"],
                    n_failed_cases=s["n_failed_cases"], n_censored=s["n_censored"])

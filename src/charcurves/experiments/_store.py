@@ -139,7 +139,8 @@ class ResultsStore:
                 )
                 self._con.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT)")
                 self._con.execute(
-                    "CREATE TABLE IF NOT EXISTS runs (id INTEGER PRIMARY KEY, started_at TEXT, sweep TEXT, settings TEXT, host TEXT)"
+                    "CREATE TABLE IF NOT EXISTS runs "
+                    "(id INTEGER PRIMARY KEY, started_at TEXT, sweep TEXT, settings TEXT, host TEXT)"
                 )
                 self._con.execute("INSERT OR IGNORE INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
                 self._con.execute("COMMIT")
@@ -209,7 +210,8 @@ class ResultsStore:
             st = [status] if isinstance(status, str) else list(status)
             sql += f" WHERE status IN ({', '.join('?' * len(st))})"
             args = tuple(st)
-        return {(s, va, m, n, float(snr), int(r), p, c, t) for s, va, m, n, snr, r, p, c, t in self._con.execute(sql, args)}
+        return {(s, va, m, n, float(snr), int(r), p, c, t)
+                for s, va, m, n, snr, r, p, c, t in self._con.execute(sql, args)}
 
     def rows(self) -> list[dict[str, Any]]:
         """All rows as dicts (``extra`` decoded)."""

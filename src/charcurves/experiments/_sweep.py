@@ -257,7 +257,8 @@ class Sweep:
                             system=system, variant=variant, method=method, noise_on=self.noise_on, snr_db=snr,
                             realization=r, preset=self.preset_name, config=config, tag=str(self.tag),
                             noise_seed=dataset_seed("noise", system, variant, self.noise_on, snr, r, self.base_seed),
-                            fit_seed=dataset_seed("fit", system, variant, self.noise_on, snr, r, self.base_seed, bits=31),
+                            fit_seed=dataset_seed("fit", system, variant, self.noise_on, snr, r, self.base_seed,
+                                                  bits=31),
                             validation_seed=dataset_seed("validation", system, variant, None, None, r, self.base_seed,
                                                          bits=31),
                             fit_kwargs=tuple(sorted(opts.items(), key=lambda kv: kv[0])),
@@ -277,7 +278,8 @@ def plan_units(jobs: Sequence[Job], *, batch: str | int = "level", max_batch: in
     other methods run one job per unit."""
     from ..fitting import METHODS
 
-    if batch not in ("level", "all", "none") and not (isinstance(batch, int) and not isinstance(batch, bool) and batch >= 1):
+    positive_int = isinstance(batch, int) and not isinstance(batch, bool) and batch >= 1
+    if batch not in ("level", "all", "none") and not positive_int:
         raise ConfigError(f"batch must be 'level', 'all', 'none' or a positive int, got {batch!r}")
     cap = max_batch if max_batch is not None else (batch if isinstance(batch, int) else None)
     groups: dict[tuple, list[Job]] = {}
@@ -370,7 +372,8 @@ def _fmt(s: float) -> str:
 def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "local", workers: int | None = None,
               progress: bool = True, forward_cases: int = 0, eps: float = 0.2, box_margin: float | None = 1.0,
               case_time_budget: float = 20.0, time_budget_per_job: float | None = None,
-              max_failed_cases: int | None = None, max_attempts: int = 1000, retry_failed: bool = False,
+              max_failed_cases: int | None = None, max_attempts: int = 1000,
+              forward_rtol: float | None = None, forward_atol: float | None = None, retry_failed: bool = False,
               batch: str | int = "level", max_batch: int | None = None, torch_threads: int | None = 1,
               save_models: bool | str = False, address: str | None = None,
               ray_init_kwargs: Mapping[str, Any] | None = None,
@@ -396,6 +399,11 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
         ``box_margin``.
     eps, box_margin, case_time_budget, max_attempts, max_failed_cases
         Forward-validation settings (see :func:`~charcurves.experiments.evaluate_forward`).
+    forward_rtol, forward_atol : float, optional
+        Tolerances of the models' forward integration; default: the system's (the truth's:
+        tight for the "paper" variants, LSODA's defaults for "scripts"). Part of a job's identity
+        when given. The forward simulations dominate a sweep's cost with the default preset; the
+        scripts' LSODA defaults (1e-3, 1e-6) are about 3x faster than 1e-10/1e-12.
     time_budget_per_job : float, optional
         Soft wall-clock budget of one job: a fit is never interrupted, but the forward cases only
         get what is left of it (cases left over are recorded as "timeout").
@@ -425,15 +433,20 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
     if isinstance(forward_cases, bool) or int(forward_cases) < 0:
         raise ConfigError(f"forward_cases must be a non-negative integer, got {forward_cases!r}")
     t0 = time.perf_counter()
-    evaluation = ({"cases": int(forward_cases), "eps": float(eps), "box_margin": box_margin}
-                  if forward_cases else None)
+    evaluation = None
+    if forward_cases:
+        evaluation = {"cases": int(forward_cases), "eps": float(eps), "box_margin": box_margin}
+        if forward_rtol is not None or forward_atol is not None:
+            evaluation.update(rtol=forward_rtol, atol=forward_atol)
     jobs = sweep.jobs(evaluation)
     models_dir = None
     if save_models:
-        models_dir = os.fspath(save_models) if isinstance(save_models, (str, os.PathLike)) else f"{os.fspath(store_path)}.models"
+        models_dir = (os.fspath(save_models) if isinstance(save_models, (str, os.PathLike))
+                      else f"{os.fspath(store_path)}.models")
     settings = RunSettings(forward_cases=int(forward_cases), eps=float(eps), box_margin=box_margin,
                            case_time_budget=float(case_time_budget), time_budget_per_job=time_budget_per_job,
                            max_attempts=int(max_attempts), max_failed_cases=max_failed_cases,
+                           sim_rtol=forward_rtol, sim_atol=forward_atol,
                            torch_threads=torch_threads, save_models_dir=models_dir)
     store = ResultsStore(store_path)
     try:

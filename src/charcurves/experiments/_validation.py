@@ -332,10 +332,10 @@ def evaluate_forward(model, system, cases, *, eps: float = 0.2, box_margin: floa
     n_failed = 0
     for case in cases:
         t = case.t_eval
-        if (deadline is not None and time.monotonic() >= deadline) or (max_failed is not None and n_failed >= max_failed):
-            why = "the job's time budget ran out" if deadline is not None and time.monotonic() >= deadline \
-                else f"{max_failed} cases had already failed"
-            results.append(CaseResult(case, "timeout" if "budget" in why else "skipped", f"not run: {why}",
+        out_of_time = deadline is not None and time.monotonic() >= deadline
+        if out_of_time or (max_failed is not None and n_failed >= max_failed):
+            why = "the job's time budget ran out" if out_of_time else f"{max_failed} cases had already failed"
+            results.append(CaseResult(case, "timeout" if out_of_time else "skipped", f"not run: {why}",
                                       float("nan"), False, float("nan"), float("nan"), float("nan"), 0.0))
             n_failed += 1
             continue

@@ -15,7 +15,7 @@ from ._linear import fit_basis, parse_basis_option
 from ._model import FittedModel
 from ._presets import get_preset
 
-__all__ = ["CharacteristicCurves", "METHODS", "parse_symmetry", "fit"]
+__all__ = ["CharacteristicCurves", "METHODS", "parse_symmetry", "fit", "dry_friction_test", "JUMP_F_THRESHOLD"]
 
 #: The paper's twelve methods as named presets of shared parts: a curve representation, whether a
 #: symmetry prior applies (odd curves unless told otherwise) and whether the learned curves are
@@ -53,6 +53,38 @@ def _load(path: str):
 
     module, func = path.split(":")
     return getattr(importlib.import_module(module), func)
+
+
+#: F statistic above which a jump at zero velocity is significant (chi2(1) quantile, p = 0.001)
+JUMP_F_THRESHOLD = 10.83
+
+
+def dry_friction_test(traj: Trajectory, template) -> tuple[float, float]:
+    """F statistic and height of a jump at zero velocity, by least squares.
+
+    The target g F - x'' is regressed on smooth odd and even powers of both arguments (degree
+    5), with and without sign(x'); the F statistic of the added column measures how much a
+    jump explains beyond smooth curves. Smooth systems give F of order 1 whatever the noise
+    level (their curves lie in the span), dry friction gives tens to thousands.
+    """
+    args = template.arguments_of(traj)
+    velocity = [n for n, var in template.variables.items() if var == "v"][0]
+    cols = [np.ones(traj.n_samples)]
+    for name, z in args.items():
+        u = z / max(float(np.max(np.abs(z))), 1e-300)
+        cols += [u, u**2, u**3, u**5]
+    base = np.column_stack(cols)
+    u = args[velocity]
+    X = np.column_stack([base, np.sign(u)])
+    y = template.gain * np.asarray(traj.F) - np.asarray(traj.a)
+    c0, *_ = np.linalg.lstsq(base, y, rcond=None)
+    c1, *_ = np.linalg.lstsq(X, y, rcond=None)
+    sse0 = float(np.sum((y - base @ c0) ** 2))
+    sse1 = float(np.sum((y - X @ c1) ** 2))
+    dof = traj.n_samples - X.shape[1]
+    if sse1 <= 0 or dof <= 0:
+        return 0.0, 0.0
+    return (sse0 - sse1) / (sse1 / dof), float(c1[-1])
 
 
 def parse_symmetry(sym, curve_names=("f1", "f2")) -> dict[str, str]:
@@ -109,7 +141,8 @@ class CharacteristicCurves:
     jump : "auto", "none" or sequence of str
         Curves that get a learned jump at 0 (dry friction), e.g. ("f1",). "auto" (default) adds
         one to the velocity curve when the record has sticking phases (x' = 0 over runs of
-        samples), which only dry friction produces.
+        samples), which only dry friction produces, or when a least-squares test finds a jump
+        at zero velocity significant (F-test, p < 0.001; see :func:`dry_friction_test`).
     basis : str or dict, optional
         Basis per curve for "parametric", e.g. "f1=z; f2=z, z**3" (z = the curve's argument).
     options : dict, optional
@@ -253,10 +286,15 @@ class CharacteristicCurves:
         elif jumps == "auto":
             from ..templates._separable import sticking_mask
 
-            sticks = any(sticking_mask(tr, rel_tol=None if self._given(tr) else 0.01).any() for tr in trajs)
             velocity = [n for n, var in template.variables.items() if var == "v"]
             auto_ok = spec["representation"] == "neural" and get_preset(self.preset).auto_jump
-            jumps = velocity if sticks and auto_ok else []
+            jumps = []
+            if auto_ok:
+                sticks = any(sticking_mask(tr, rel_tol=None if self._given(tr) else 0.01).any() for tr in trajs)
+                # without sticking phases, a jump is added when the data call for it (every record of a
+                # batch gets the same curve layout, so one significant record decides)
+                if sticks or any(dry_friction_test(tr, template)[0] > JUMP_F_THRESHOLD for tr in trajs):
+                    jumps = velocity
         if spec["representation"] in _FITTERS:
             if jumps:
                 raise ConfigError(f"--jump applies to neural curves, not to method {self.method!r}")

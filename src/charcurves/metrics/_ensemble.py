@@ -223,7 +223,13 @@ def fit_bias(eta: Sequence[float], rmse: Sequence[float], *, eta_min: float | No
     def model(x, b, a):
         return np.sqrt(b * b + (a * x) ** 2)
 
-    popt, _ = curve_fit(model, ek, rk, p0=[float(rk.min()), 1.0], bounds=([0.0, 0.0], [np.inf, np.inf]))
+    import warnings
+
+    from scipy.optimize import OptimizeWarning
+
+    with warnings.catch_warnings():  # the covariance is not used (two levels leave none to estimate)
+        warnings.simplefilter("ignore", OptimizeWarning)
+        popt, _ = curve_fit(model, ek, rk, p0=[float(rk.min()), 1.0], bounds=([0.0, 0.0], [np.inf, np.inf]))
     return float(popt[0]), float(popt[1])
 
 

@@ -12,9 +12,9 @@ unary operator for Duffing, tanh for stick-slip) without running two searches pe
   (curve minus jump), and the outer coefficients of both parts are refitted together. Measured
   on stick-slip curves this is what makes a Coulomb law come out as ``c z + muN tanh(k z)``:
   with tanh in the operator set, SR uses nested tanh to imitate the small network's wiggles
-  (the network itself is built from tanh units). ``k = 1/eps`` is capped at ``10/h`` (h the
-  grid spacing): a jump narrower than the grid is a step on every grid point either way, and the
-  cap keeps forward simulations from becoming needlessly stiff;
+  (the network itself is built from tanh units). ``k = 1/eps`` is lowered to ``20 / min|z|``
+  over the grid when larger: a jump narrower than that is a step on every grid point either
+  way, and the lower k keeps forward simulations from becoming needlessly stiff;
 * any other curve with a jump at 0 -- a closed form containing tanh/sign/Abs, or samples in
   which one grid step carries more than 5 % of the curve's range and more than 20x the median
   step -- gets + - * and tanh;
@@ -25,6 +25,7 @@ An explicit ``sr_options["operators"]`` overrides all this (whole-curve SR with 
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -143,8 +144,13 @@ def _neural_jump(curve: FittedCurve, z: np.ndarray):
     eps_m = np.exp(curve.theta[:, sl["jump_log_eps"]].reshape(-1)) * curve.in_scale
     with np.errstate(over="ignore", divide="ignore"):
         vals = np.mean(mu_m[:, None] * np.tanh(z[None, :] / eps_m[:, None]), axis=0)
-    h = float(np.median(np.diff(z))) if z.size > 1 else 1.0
-    k = float(min(1.0 / max(float(np.median(eps_m)), 1e-300), 10.0 / max(h, 1e-300)))
+    # k = 1/eps, lowered to where the step is still saturated (|k z| >= 20) at every grid point:
+    # a jump narrower than that is a step on the grid either way, and the lower k keeps forward
+    # simulations from being needlessly stiff. (Capping at the grid spacing instead would leave
+    # a grid point that happens to lie very near 0 on the slope of the tanh.)
+    az = np.abs(z[z != 0])
+    k_sat = 20.0 / float(az.min()) if az.size else math.inf
+    k = float(min(1.0 / max(float(np.median(eps_m)), 1e-300), k_sat))
     return vals, float(np.mean(mu_m)), k
 
 
