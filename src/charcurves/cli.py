@@ -58,6 +58,9 @@ def _build_parser() -> argparse.ArgumentParser:
     f.add_argument("--sym", default=None, help="parity priors, e.g. f1=odd,f2=odd")
     f.add_argument("--free-gain", action="store_true", help="learn the input gain g")
     f.add_argument("--gauge", choices=["f1", "f2"], default="f2", help="curve anchored at 0 (default f2)")
+    f.add_argument("--noisy-side", choices=["force", "acceleration"], default="force",
+                   help="with --free-gain: which measured side carries the noise and is regressed on "
+                        "(force: the paper's loss; acceleration: noise on the measured state)")
     f.add_argument("--preset", default="default", help="training preset: default or paper")
     f.add_argument("--seed", type=int, default=0)
     f.add_argument("--derivatives", default="auto", help="auto, given, savgol, spline, spectral or fd")
@@ -135,6 +138,7 @@ def _cmd_simulate(a) -> int:
 
 
 def _fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_gain=False, gauge="f2",
+                   gain_on="force",
                    preset="default", seed=0, derivatives="auto", jump="auto", basis=None, keep_sticking=False,
                    truth=None, threads=None, device="cpu", figure=True, quiet=False, source=None,
                    sr_options=None):
@@ -142,7 +146,7 @@ def _fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_
     from .metrics import curve_errors
 
     est = CharacteristicCurves(
-        family=family, method=method, symmetry=sym, free_gain=free_gain, gauge=gauge, preset=preset,
+        family=family, method=method, symmetry=sym, free_gain=free_gain, gauge=gauge, gain_on=gain_on, preset=preset,
         derivatives=derivatives, jump=jump if jump in ("auto", "none", "") else [j for j in jump.split(",") if j.strip()],
         basis=basis, sr_options=sr_options, exclude_sticking=not keep_sticking, random_state=seed,
         threads=1 if threads is None else threads, device=device,
@@ -209,7 +213,7 @@ def _cmd_fit(a) -> int:
     sr_options = {k: v for k, v in (("engine", a.sr_engine), ("generations", a.sr_generations),
                                     ("populations", a.sr_populations), ("max_size", a.sr_max_size)) if v is not None}
     _fit_and_write(traj, a.out, method=a.method, family=a.family, sym=a.sym, free_gain=a.free_gain, sr_options=sr_options,
-                   gauge=a.gauge, preset=a.preset, seed=a.seed, derivatives=a.derivatives, jump=a.jump,
+                   gauge=a.gauge, gain_on=a.noisy_side, preset=a.preset, seed=a.seed, derivatives=a.derivatives, jump=a.jump,
                    basis=a.basis, keep_sticking=a.keep_sticking, truth=truth, threads=a.threads,
                    device=a.device, figure=not a.no_figure, quiet=a.quiet, source=os.path.abspath(a.csv))
     return 0

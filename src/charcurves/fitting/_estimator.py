@@ -131,6 +131,9 @@ class CharacteristicCurves:
     free_gain : bool
         Learn the input gain g (otherwise g = ``gain``).
     gain : float
+    gain_on : {"force", "acceleration"}
+        With a free gain: which measured side is noisy and so the regression target (see
+        SeparableTemplate).
     gauge : {"f2", "f1"}
         The curve anchored at 0 (fixes the constant the curves can trade).
     preset : {"default", "paper"} or TrainingPreset
@@ -170,7 +173,8 @@ class CharacteristicCurves:
     """
 
     def __init__(self, family: str = "separable", method: str = "nn-cc+sym", *, symmetry=None,
-                 free_gain: bool = False, gain: float = 1.0, gauge: str = "f2", preset="default",
+                 free_gain: bool = False, gain: float = 1.0, gauge: str = "f2", gain_on: str = "force",
+                 preset="default",
                  derivatives: str = "auto", jump: str | Sequence[str] = "auto", basis=None,
                  options: dict | None = None, sr_options: dict | None = None, exclude_sticking: bool = True, hidden: Sequence[int] | None = None,
                  activation: str | None = None, random_state: int = 0, threads: int | None = None,
@@ -181,6 +185,7 @@ class CharacteristicCurves:
         self.free_gain = free_gain
         self.gain = gain
         self.gauge = gauge
+        self.gain_on = gain_on
         self.preset = preset
         self.derivatives = derivatives
         self.jump = jump
@@ -216,7 +221,8 @@ class CharacteristicCurves:
             raise ConfigError(f"unknown method {self.method!r}; choose one of {', '.join(METHODS)}")
         spec = METHODS[self.method]
         free_gain = bool(self.free_gain) or bool(spec.get("free_gain", False))
-        template = get_template(self.family, free_gain=free_gain, gain=float(self.gain), gauge=self.gauge)
+        template = get_template(self.family, free_gain=free_gain, gain=float(self.gain), gauge=self.gauge,
+                                gain_on=self.gain_on)
         names = template.curve_names
         sym = parse_symmetry(self.symmetry, names)
         if spec["symmetry"] and all(v == "none" for v in sym.values()):

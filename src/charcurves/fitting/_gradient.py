@@ -48,6 +48,10 @@ class BatchedProblem:
     weights: torch.Tensor  # (K, N): 1/sqrt(N_used) for used samples, 0 for excluded ones
     free_gain: bool = False
     gain: float = 1.0
+    # with a free gain, which measured side carries the noise (the regression target): "force"
+    # fits F = h x'' + sum f + b with h = 1/g (the paper's loss, no attenuation by noise on F);
+    # "acceleration" fits x'' + sum f + b = g F (for records whose noise sits on the state)
+    gain_on: str = "force"
     bias: bool = False
     lambda_sym: float = 0.0
     # on network weights only (linear, jump, gain, constant stay free); a float or one value per
@@ -88,7 +92,7 @@ class BatchedProblem:
         wd = self.weight_decay
         wd = wd[rows] if torch.is_tensor(wd) and wd.dim() else wd
         return BatchedProblem(terms, self.y[rows], self.F[rows], self.weights[rows], free_gain=self.free_gain,
-                              gain=self.gain, bias=self.bias, lambda_sym=self.lambda_sym, weight_decay=wd,
+                              gain=self.gain, gain_on=self.gain_on, bias=self.bias, lambda_sym=self.lambda_sym, weight_decay=wd,
                               bayesian=self.bayesian)
 
     def refresh_decay_rows(self, theta: torch.Tensor, r: torch.Tensor, J: torch.Tensor) -> None:
@@ -113,7 +117,13 @@ class BatchedProblem:
         o = self.offsets[i]
         return theta[:, o : o + self.terms[i].curve.n_params]
 
+    def _base(self, theta: torch.Tensor) -> torch.Tensor:
+        if self.free_gain and self.gain_on == "force":
+            return self.gain_of(theta) * self.y + self.bias_of(theta) - self.F
+        return self.y + self.bias_of(theta) - self.gain_of(theta) * self.F
+
     def gain_of(self, theta: torch.Tensor) -> torch.Tensor:
+        """The free coefficient: g (gain_on="acceleration") or h = 1/g (gain_on="force")."""
         if self.free_gain:
             return theta[:, self.gain_index : self.gain_index + 1]
         return torch.full((theta.shape[0], 1), float(self.gain), dtype=theta.dtype, device=theta.device)
@@ -125,7 +135,7 @@ class BatchedProblem:
 
     # ------------------------------------------------------------------ residuals
     def residuals(self, theta: torch.Tensor) -> torch.Tensor:
-        pred = self.y + self.bias_of(theta) - self.gain_of(theta) * self.F
+        pred = self._base(theta)
         for i, term in enumerate(self.terms):
             f = term.curve.evaluate(self.block(theta, i), term.u, term.u_both)
             pred = pred + (f if term.multiplier is None else term.multiplier * f)
@@ -147,7 +157,7 @@ class BatchedProblem:
     def residuals_jacobian(self, theta: torch.Tensor):
         K, N = self.y.shape
         J = theta.new_zeros(K, N, self.n_params)
-        pred = self.y + self.bias_of(theta) - self.gain_of(theta) * self.F
+        pred = self._base(theta)
         for i, term in enumerate(self.terms):
             f, Ji = term.curve.evaluate_jacobian(self.block(theta, i), term.u, term.u_both)
             if term.multiplier is not None:
@@ -157,7 +167,7 @@ class BatchedProblem:
             o = self.offsets[i]
             J[:, :, o : o + term.curve.n_params] = Ji
         if self.free_gain:
-            J[:, :, self.gain_index] = -self.F
+            J[:, :, self.gain_index] = self.y if self.gain_on == "force" else -self.F
         if self.bias:
             J[:, :, self.bias_index] = 1.0
         r = [self.weights * pred]

@@ -70,17 +70,28 @@ def fit_basis(traj: Trajectory, template: SeparableTemplate, basis: dict[str, li
         cols.append(np.ones(traj.n_samples))
         owners.append("__constant")
     target = template.gain * np.asarray(traj.F) - np.asarray(traj.a)
+    force_side = template.free_gain and template.gain_on == "force"
     if template.free_gain:
-        cols.append(-np.asarray(traj.F))
+        if force_side:  # F = h x'' + sum c b(z) + const, g = 1/h: the noisy forcing is the target
+            cols.append(np.asarray(traj.a))
+            target = np.asarray(traj.F)
+        else:
+            cols.append(-np.asarray(traj.F))
+            target = -np.asarray(traj.a)
         owners.append("__gain")
-        target = -np.asarray(traj.a)
     A = np.column_stack(cols)[mask]
     coef, *_ = np.linalg.lstsq(A, target[mask], rcond=None)
-    resid = A @ coef - target[mask]
-    loss = float(np.mean(resid**2))
     owners = np.array(owners)
+    if force_side:
+        h = float(coef[owners == "__gain"][0])
+        coef = coef / h  # curves and constant in the x'' + f1 + f2 + b = g F form
+        coef[owners == "__gain"] = 1.0 / h
     gain = float(coef[owners == "__gain"][0]) if template.free_gain else template.gain
     b = float(coef[owners == "__constant"][0]) if use_constant else 0.0
+    design = np.column_stack([c for c, o in zip(cols, owners) if o != "__gain"])[mask] if len(cols) > 1 else None
+    resid = (design @ coef[owners != "__gain"] if design is not None else 0.0) + np.asarray(traj.a)[mask] \
+        - gain * np.asarray(traj.F)[mask]
+    loss = float(np.mean(resid**2))
     curves = {
         name: BasisFittedCurve(name, template.arguments[name], (float(args[name].min()), float(args[name].max())),
                                basis[name], coef[owners == name])

@@ -114,7 +114,8 @@ def fit_neural(
             sym_pts = T(np.repeat(np.stack(zs), R, axis=0))
         terms.append(CurveTerm(spec, T(z), None, sym_pts))
     bias = all(curves[nm].pinned_at_zero for nm in names)
-    problem = BatchedProblem(terms, y, F, w, free_gain=template.free_gain, gain=template.gain, bias=bias,
+    problem = BatchedProblem(terms, y, F, w, free_gain=template.free_gain, gain=template.gain,
+                             gain_on=template.gain_on, bias=bias,
                              lambda_sym=preset.lambda_sym, weight_decay=weight_decay, bayesian=preset.bayesian)
 
     # ---------------------------------------------------------------- initialisation (per model seed)
@@ -124,7 +125,8 @@ def fit_neural(
             gen = torch.Generator().manual_seed(int(seed) * 7919 + r)
             parts = [curves[nm].init(1, gen, dtype) for nm in names]
             if template.free_gain:
-                parts.append(torch.full((1, 1), float(template.gain), dtype=dtype))
+                start = 1.0 / template.gain if template.gain_on == "force" else float(template.gain)
+                parts.append(torch.full((1, 1), start, dtype=dtype))
             if bias:
                 parts.append(torch.zeros(1, 1, dtype=dtype))
             thetas.append(torch.cat(parts, dim=1))
@@ -173,6 +175,13 @@ def fit_neural(
             )
         b = float(problem.bias_of(rows).mean()) * s_out
         g = float(problem.gain_of(rows).mean())
+        if template.free_gain and template.gain_on == "force":
+            # F = h x'' + f~ + b~  <=>  x'' + g f~ + g b~ = g F with g = 1/h
+            g = 1.0 / g
+            b *= g
+            for name in names:
+                fitted[name].out_scale *= g
+                fitted[name]._np_fn = None
         raw0 = {nm: float(fitted[nm].raw(np.array([0.0]))[0]) for nm in names}
         pinned = {nm: fitted[nm].pinned_at_zero for nm in names}
         shifts, offset = apply_gauge(raw0, pinned, b, template.gauge, names)
@@ -238,7 +247,7 @@ def _warm_start(problem, theta0):
                 cols.append(c if m is None else c * m)
                 idx.append(o + sl["jump_height"].start)
         if problem.free_gain:
-            cols.append(-problem.F)
+            cols.append(problem.y if problem.gain_on == "force" else -problem.F)
             idx.append(problem.gain_index)
         if problem.bias:
             cols.append(torch.ones_like(problem.y))

@@ -202,10 +202,12 @@ def fit_poly(traj: Trajectory, template: SeparableTemplate, *, symmetry: dict[st
         cols.append(np.ones(traj.n_samples))
         owners.append(("__constant", 0))
     target = template.gain * np.asarray(traj.F) - np.asarray(traj.a)
+    force_side = template.free_gain and template.gain_on == "force"
     if template.free_gain:
-        cols.append(-np.asarray(traj.F))
+        # the noisy side is the target (see SeparableTemplate.gain_on): F = h x'' + ... with g = 1/h
+        cols.append(np.asarray(traj.a) if force_side else -np.asarray(traj.F))
         owners.append(("__gain", 0))
-        target = -np.asarray(traj.a)
+        target = np.asarray(traj.F) if force_side else -np.asarray(traj.a)
     A = np.column_stack(cols)[mask]
     y = target[mask]
     # equilibrate the columns (the scripts' map gives powers up to 3^10) before the solve
@@ -213,7 +215,14 @@ def fit_poly(traj: Trajectory, template: SeparableTemplate, *, symmetry: dict[st
     norms[norms == 0] = 1.0
     coef_scaled, *_ = np.linalg.lstsq(A / norms, y, rcond=None)
     coef = coef_scaled / norms
-    resid = A @ coef - y
+    if force_side:
+        h = float(coef[[o == "__gain" for o, _ in owners].index(True)])
+        coef = coef / h  # back to x'' + f1 + f2 + b = g F
+        coef[[o == "__gain" for o, _ in owners].index(True)] = 1.0 / h
+        resid = (A @ (coef * np.array([0.0 if o == "__gain" else 1.0 for o, _ in owners]))
+                 + np.asarray(traj.a)[mask] - np.asarray(traj.F)[mask] / h)
+    else:
+        resid = A @ coef - y
     loss = float(np.mean(resid**2))
 
     gain = template.gain

@@ -28,11 +28,17 @@ class SeparableTemplate:
     gauge : {"f2", "f1"}
         Which curve is anchored at 0 to fix the constant that f1 and f2 can trade
         (the paper's NN-CC: f2(0) = 0).
+    gain_on : {"force", "acceleration"}
+        With a free gain, the side of the equation whose measurement carries the noise, used as
+        the regression target: "force" fits F = (x'' + f1 + f2 + b) / g (the paper's loss; noise
+        on the forcing then does not bias g), "acceleration" fits x'' = g F - f1 - f2 - b (noise
+        on the state). Irrelevant when the gain is fixed.
     """
 
     free_gain: bool = False
     gain: float = 1.0
     gauge: str = "f2"
+    gain_on: str = "force"
 
     family = "separable"
     curve_names = ("f1", "f2")
@@ -44,6 +50,8 @@ class SeparableTemplate:
     def __post_init__(self) -> None:
         if self.gauge not in self.curve_names:
             raise ConfigError(f"gauge must name a curve to anchor at 0 (f1 or f2), got {self.gauge!r}")
+        if self.gain_on not in ("force", "acceleration"):
+            raise ConfigError(f"gain_on must be 'force' or 'acceleration', got {self.gain_on!r}")
         if not np.isfinite(self.gain) or self.gain == 0:
             raise ConfigError(f"the fixed gain must be a finite non-zero number, got {self.gain}")
 
@@ -70,7 +78,8 @@ class SeparableTemplate:
             raise DataError("the forcing and acceleration are constant: the record has no excitation")
 
     def to_dict(self) -> dict:
-        return {"family": self.family, "free_gain": self.free_gain, "gain": self.gain, "gauge": self.gauge}
+        return {"family": self.family, "free_gain": self.free_gain, "gain": self.gain, "gauge": self.gauge,
+                "gain_on": self.gain_on}
 
 
 def get_template(family: str = "separable", **kwargs) -> SeparableTemplate:
