@@ -271,13 +271,13 @@ class CharacteristicCurves:
 
     def fit_many(self, trajectories: Sequence[Trajectory], seeds: Sequence[int] | None = None) -> list[FittedModel]:
         """Fit many records (noise realisations, SNR levels...); neural curves train in one batch."""
-        models = self._fit_many_raw(trajectories, seeds)
+        models, prepared = self._fit_many_raw(trajectories, seeds)
         if METHODS[self.method]["post_sr"]:
             distill = _load(_DISTILL)
             if seeds is None:
                 seeds = [self.random_state + i for i in range(len(models))]
-            models = [distill(m, sr_options=dict(self.sr_options or {}), random_state=int(s))
-                      for m, s in zip(models, seeds)]
+            models = [distill(m, sr_options=dict(self.sr_options or {}), random_state=int(s), traj=tr)
+                      for m, s, tr in zip(models, seeds, prepared)]
             for m in models:
                 m.method = self.method
         return models
@@ -313,13 +313,13 @@ class CharacteristicCurves:
                     options.setdefault("stick_tol", None if self._given(tr) else 0.01)
                 out.append(fitter(tr, template, symmetry=sym, options=options,
                                   sr_options=dict(self.sr_options or {}), random_state=int(s), method=self.method))
-            return out
+            return out, trajs
         if spec["representation"] == "basis":
             basis = parse_basis_option(self.basis, template.curve_names)
             if jumps:
                 raise ConfigError("--jump applies to neural curves; add tanh(k*z) to the basis for parametric")
             return [fit_basis(tr, template, basis, method=self.method, exclude_sticking=self.exclude_sticking,
-                              stick_tol=None if self._given(tr) else 0.01) for tr in trajs]
+                              stick_tol=None if self._given(tr) else 0.01) for tr in trajs], trajs
         from ._neural_fit import fit_neural
 
         preset = get_preset(self.preset)
@@ -346,7 +346,7 @@ class CharacteristicCurves:
                                 progress=self.progress)
             for i, m in zip(idx, models):
                 out[i] = m
-        return out  # type: ignore[return-value]
+        return out, trajs  # type: ignore[return-value]
 
     def _given(self, traj: Trajectory) -> bool:
         return self.derivatives in ("auto", "given") and traj.has_derivatives

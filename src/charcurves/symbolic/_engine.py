@@ -24,22 +24,25 @@ Measurements behind the defaults (2-core shared machine, one thread, Operon 0.6 
 default settings: 1 population of 300, 40 generations, max size 20, search on 400 points).
 
 *Post-SR* (samples of learned curves). NN-CC+sym fits of Duffing and stick-slip at 40/20/10 dB,
-3 noise seeds each, both curves, 2 SR seeds: 72 distillations per criterion. Recovered = exactly
-the true terms (Duffing f1 = a z, f2 = b z + c z^3; stick-slip f1 = c z + muN tanh(k z),
-f2 = k z), no constant or other term:
+3 noise seeds each, both curves, 2 SR seeds: 72 distillations per criterion, done for networks
+of two training presets (tanh MLP; the current default, softplus with Bayesian weight decay).
+Recovered = exactly the true terms (Duffing f1 = a z, f2 = b z + c z^3; stick-slip
+f1 = c z + muN tanh(k z), f2 = k z), no constant or other term:
 
-=========================  ======  ==========  ======  =====
-criterion                  knee    parsimony   best    bic
-=========================  ======  ==========  ======  =====
-recovered (of 72)          72      72          11      0
-stick-slip f1, whole-curve
-SR with tanh (of 18)       6       11          0       0
-=========================  ======  ==========  ======  =====
+=====================================  ======  ==========  ======  =====
+criterion                              knee    parsimony   best    bic
+=====================================  ======  ==========  ======  =====
+recovered of 72, tanh networks         72      72          11      0
+recovered of 72, current networks      71      42          24      18
+stick-slip f1 by whole-curve SR with
+tanh, of 18: tanh / current networks   6 / 17  11 / 14     0 / 13  0 / 13
+=====================================  ======  ==========  ======  =====
 
-"best" (PySR's default) and "bic" keep terms that follow the network's wiggles (x^5, x^7...);
-the last row is the friction curve without the by-parts treatment of
-:mod:`charcurves.symbolic._distill` (SR then imitates the network's tanh units with nested
-tanh, or "knee" stops after the jump alone). Time per curve: mean 1.8 s, max 3 s.
+"best" (PySR's default), "bic" and the fixed-rate "parsimony" keep terms that follow the
+network's wiggles (x^5, x^7, 1e-4 x^3...); "knee" stops at the structure (its one miss is a
+10 dB network whose curve is itself off, RMSE 0.03). The last row is the friction curve without
+the by-parts treatment of :mod:`charcurves.symbolic._distill`: on tanh networks SR imitates the
+network's tanh units with nested tanh. Time per curve: mean 1.2-1.8 s, max 3 s.
 
 *SR / SR-CC on records* (20 dB, 5 noise seeds, true structure in f1 and f2 and no mixed term):
 
