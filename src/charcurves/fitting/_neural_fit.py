@@ -69,7 +69,8 @@ def fit_neural(
     t_start = time.perf_counter()
 
     # ---------------------------------------------------------------- data, masks and scales
-    args, ys, Fs, masks, scales_in, scale_out, n_stuck = [], [], [], [], [], [], []
+    args, ys, Fs, masks, scales_in, scale_out, n_stuck, g_est = [], [], [], [], [], [], [], []
+    force_side = template.free_gain and template.gain_on == "force"
     for tr in trajectories:
         template.check_excitation(tr)
         a = template.arguments_of(tr)
@@ -89,7 +90,15 @@ def fit_neural(
         s_in = {k: (float(np.max(np.abs(a[k]))) if preset.scale_inputs else 1.0) for k in names}
         scales_in.append(s_in)
         g0 = template.gain
-        s_out = float(np.std((ys[-1] - g0 * Fs[-1])[mask])) if preset.scale_output else 1.0
+        if force_side:
+            # F = h x'' + f~ + b~: the target is the forcing. x'' is divided by a least-squares
+            # estimate of g so that the learned coefficient h' = g_est / g is of order one
+            # whatever the units (volts and 1e5 1/s^2 on real records).
+            g_est.append(_gain_estimate(a, ys[-1], Fs[-1], mask, template.gain))
+            s_out = float(np.std(Fs[-1][mask])) if preset.scale_output else 1.0
+        else:
+            g_est.append(1.0)
+            s_out = float(np.std((ys[-1] - g0 * Fs[-1])[mask])) if preset.scale_output else 1.0
         scale_out.append(s_out if s_out > 0 else 1.0)
 
     K = len(trajectories)
@@ -97,7 +106,7 @@ def fit_neural(
     rep = lambda arr_list: np.repeat(np.stack(arr_list), R, axis=0)  # noqa: E731
     T = lambda arr: torch.as_tensor(arr, dtype=dtype, device=device)  # noqa: E731
     so = np.repeat(np.array(scale_out), R)[:, None]
-    y = T(rep(ys) / so)
+    y = T(rep(ys) / so / np.repeat(np.array(g_est), R)[:, None])
     F = T(rep(Fs) / so)
     w_np = rep([m / np.sqrt(m.sum()) for m in masks])
     w = T(w_np)
@@ -125,7 +134,7 @@ def fit_neural(
             gen = torch.Generator().manual_seed(int(seed) * 7919 + r)
             parts = [curves[nm].init(1, gen, dtype) for nm in names]
             if template.free_gain:
-                start = 1.0 / template.gain if template.gain_on == "force" else float(template.gain)
+                start = 1.0 if template.gain_on == "force" else float(template.gain)
                 parts.append(torch.full((1, 1), start, dtype=dtype))
             if bias:
                 parts.append(torch.zeros(1, 1, dtype=dtype))
@@ -177,7 +186,7 @@ def fit_neural(
         g = float(problem.gain_of(rows).mean())
         if template.free_gain and template.gain_on == "force":
             # F = h x'' + f~ + b~  <=>  x'' + g f~ + g b~ = g F with g = 1/h
-            g = 1.0 / g
+            g = g_est[k] / g
             b *= g
             for name in names:
                 fitted[name].out_scale *= g
@@ -212,6 +221,18 @@ def fit_neural(
         model.loss = float(np.mean(resid**2))  # the combined model's own data loss
         models.append(model)
     return models
+
+
+def _gain_estimate(args, a, F, mask, fallback):
+    """Least-squares g from F = h x'' + smooth odd/even powers of the arguments + constant."""
+    cols = [a, np.ones_like(a)]
+    for z in args.values():
+        u = z / max(float(np.max(np.abs(z))), 1e-300)
+        cols += [u, u**2, u**3]
+    A = np.column_stack(cols)[mask]
+    coef, *_ = np.linalg.lstsq(A / np.linalg.norm(A, axis=0), F[mask], rcond=None)
+    h = coef[0] / np.linalg.norm(A[:, 0])
+    return float(1.0 / h) if np.isfinite(h) and h != 0 else float(fallback)
 
 
 def _merge_logs(logs):
