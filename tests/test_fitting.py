@@ -50,8 +50,9 @@ def test_nn_cc_sym_single_seed_accuracy_and_gauge(duffing, duffing_20db):
         z = c.grid(50)
         assert np.allclose(c(z), -c(-z), atol=1e-12)
     assert abs(model.offset) < 0.01
-    # the data loss is at the noise floor (sigma_n^2 = 0.01 * var(F) = 1.25e-3)
-    assert 1.0e-3 < model.loss < 1.5e-3
+    # the data loss is at the noise floor (sigma_n^2 = 0.01 * var(F) = 1.25e-3), within 20 %
+    noise_floor = 0.01 * float(np.var(duffing_20db.F))
+    assert abs(model.loss / noise_floor - 1.0) < 0.2
 
 
 def test_nn_cc_without_symmetry_applies_the_f2_gauge(duffing, duffing_20db):

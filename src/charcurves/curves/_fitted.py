@@ -277,26 +277,40 @@ _ALLOWED_NAMES = set(_ALLOWED_FUNCS) | {"z", "abs", "pi", "E"}
 _ALLOWED_OPS = {"+", "-", "*", "/", "**", "(", ")", ","}
 
 
-def _check_tokens(text: str) -> None:
-    """Allow only numbers, the symbol z, known function names and arithmetic: nothing is executed."""
+def first_disallowed_token(text: str, name_ok, ops) -> str | None:
+    """The first token of ``text`` that is not a number, an allowed name (``name_ok(name)``) or an
+    operator in ``ops``; "" when the text cannot be tokenized; None when every token is allowed.
+
+    This is the safety check run before sympy parses text from files or engines (sympy's parser
+    evaluates Python code, so nothing else may reach it)."""
     import io
     import tokenize
-
-    from .._errors import ConfigError
 
     try:
         tokens = list(tokenize.generate_tokens(io.StringIO(text).readline))
     except (tokenize.TokenError, IndentationError, SyntaxError):
-        raise ConfigError(f"cannot parse {text!r}; write an expression of z such as 'z**3'") from None
+        return ""
     for tok in tokens:
         if tok.type in (tokenize.NEWLINE, tokenize.NL, tokenize.ENDMARKER, tokenize.NUMBER):
             continue
-        if tok.type == tokenize.NAME and tok.string in _ALLOWED_NAMES:
+        if tok.type == tokenize.NAME and name_ok(tok.string):
             continue
-        if tok.type == tokenize.OP and tok.string in _ALLOWED_OPS:
+        if tok.type == tokenize.OP and tok.string in ops:
             continue
+        return tok.string
+    return None
+
+
+def _check_tokens(text: str) -> None:
+    """Allow only numbers, the symbol z, known function names and arithmetic: nothing is executed."""
+    from .._errors import ConfigError
+
+    bad = first_disallowed_token(text, _ALLOWED_NAMES.__contains__, _ALLOWED_OPS)
+    if bad == "":
+        raise ConfigError(f"cannot parse {text!r}; write an expression of z such as 'z**3'")
+    if bad is not None:
         raise ConfigError(
-            f"{text!r} is not a plain expression of z ({tok.string!r} is not allowed); use z, numbers, "
+            f"{text!r} is not a plain expression of z ({bad!r} is not allowed); use z, numbers, "
             f"+ - * / ** and {', '.join(_ALLOWED_FUNCS)}"
         )
 

@@ -687,25 +687,19 @@ def parse_infix(text: str, symbols: Sequence) -> Any:
     Only numbers, ``X<k>``, known function names and arithmetic are accepted (token check
     before sympy sees the text); ``^`` is power.
     """
-    import io
     import re
-    import tokenize
 
     import sympy as sp
     from sympy.parsing.sympy_parser import parse_expr, standard_transformations
 
-    try:
-        tokens = list(tokenize.generate_tokens(io.StringIO(text).readline))
-    except (tokenize.TokenError, IndentationError, SyntaxError):
-        raise ValueError(f"cannot tokenize model {text!r}") from None
-    for tok in tokens:
-        if tok.type in (tokenize.NEWLINE, tokenize.NL, tokenize.ENDMARKER, tokenize.NUMBER):
-            continue
-        if tok.type == tokenize.NAME and (tok.string in _INFIX_FUNCS or re.fullmatch(r"X\d+", tok.string)):
-            continue
-        if tok.type == tokenize.OP and tok.string in {"+", "-", "*", "/", "^", "(", ")", "**"}:
-            continue
-        raise ValueError(f"unexpected token {tok.string!r} in model {text!r}")
+    from ..curves._fitted import first_disallowed_token
+
+    bad = first_disallowed_token(text, lambda name: name in _INFIX_FUNCS or re.fullmatch(r"X\d+", name) is not None,
+                                 {"+", "-", "*", "/", "^", "(", ")", "**"})
+    if bad == "":
+        raise ValueError(f"cannot tokenize model {text!r}")
+    if bad is not None:
+        raise ValueError(f"unexpected token {bad!r} in model {text!r}")
     local = {f"X{i + 1}": s for i, s in enumerate(symbols)}
     local.update({"tanh": sp.tanh, "sin": sp.sin, "cos": sp.cos, "exp": sp.exp, "log": sp.log,
                   "sqrt": sp.sqrt, "abs": sp.Abs, "square": lambda a: a**2})
