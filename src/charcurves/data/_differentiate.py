@@ -57,11 +57,8 @@ import warnings
 from typing import Any, ClassVar, final
 
 import numpy as np
-from scipy import fft as _fft
-from scipy.interpolate import UnivariateSpline, make_smoothing_spline
-from scipy.optimize import minimize_scalar
-from scipy.signal import savgol_filter
-from scipy.stats import chi2
+# scipy is imported inside the functions that use it: importing charcurves.data must stay cheap
+# for records with given derivatives (the five subpackages cost about a second).
 
 from .._errors import ConfigError, DataError
 from ._trajectory import Trajectory
@@ -292,6 +289,8 @@ class SavitzkyGolay(Differentiator):
         super()._check(traj)
 
     def _differentiate(self, t: np.ndarray, x: np.ndarray) -> Triple:
+        from scipy.signal import savgol_filter
+
         dt = float(np.median(np.diff(t)))
         kw = dict(window_length=self.window, polyorder=self.order, mode=self.mode, delta=dt)
         return (
@@ -317,6 +316,9 @@ def _gcv_cubic(u: np.ndarray, y: np.ndarray, lam: float | None) -> tuple[float, 
     freedom) is a Hutchinson estimate from fixed Rademacher probes smoothed in the same call, so
     the GCV curve is smooth in ``lam`` and the result reproducible.
     """
+    from scipy.interpolate import make_smoothing_spline
+    from scipy.optimize import minimize_scalar
+
     n = y.shape[0]
     rng = np.random.default_rng(_GCV_SEED)
     probes = rng.choice((-1.0, 1.0), size=(n, _GCV_PROBES))
@@ -422,6 +424,8 @@ class SmoothingSpline(Differentiator):
         return out[0], out[1], out[2]
 
     def _differentiate_block(self, t: np.ndarray, x: np.ndarray) -> Triple:
+        from scipy.interpolate import UnivariateSpline, make_smoothing_spline
+
         # Fit on a unit-step abscissa so that lam's search range is independent of the time
         # unit; derivatives are scaled back by 1/step^k.
         step = float(np.median(np.diff(t)))
@@ -453,6 +457,8 @@ _FALSE_ALARM = 0.01  # chance that pure noise pushes the automatic cutoff above 
 
 def _odd_spectrum(r: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, int]:
     """rfft of the odd (point-symmetric) periodic extension of ``r`` (``r[0] ≈ r[-1] ≈ 0``)."""
+    from scipy import fft as _fft
+
     ext = np.concatenate([r, -r[-2:0:-1]])
     m = ext.shape[0]
     return _fft.rfft(ext), _fft.rfftfreq(m, dt), m
@@ -530,6 +536,8 @@ class Spectral(Differentiator):
     def _first_pass(self, tt: np.ndarray, x: np.ndarray, dt: float) -> float:
         if self.cutoff is not None:
             return self.cutoff
+        from scipy.stats import chi2
+
         line = x[0] + (x[-1] - x[0]) * tt / tt[-1]
         R, f, _ = _odd_spectrum(x - line, dt)
         power = np.abs(R[1:]) ** 2
@@ -540,6 +548,8 @@ class Spectral(Differentiator):
         return float(f[above[-1]]) if above.size else float(f[0])
 
     def _differentiate(self, t: np.ndarray, x: np.ndarray) -> Triple:
+        from scipy import fft as _fft
+
         n = x.shape[0]
         dt = float(np.median(np.diff(t)))
         tt = np.arange(n) * dt
