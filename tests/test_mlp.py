@@ -67,3 +67,16 @@ def test_paper_network_size():
     n = 100
     spec = NeuralCurve(hidden=(n, n, n), activation="relu", linear_term=False)
     assert 2 * spec.n_params == 2 * (2 * n * n + 5 * n + 1) == 41002
+
+
+def test_numpy_evaluation_of_fitted_curves_matches_torch():
+    # simulation evaluates networks with numpy; training used torch: both must agree
+    from charcurves.curves import NeuralFittedCurve
+
+    for act in sorted(ACTIVATIONS):
+        for sym, jump in (("none", False), ("odd", True), ("even", False)):
+            spec = NeuralCurve(hidden=(5,), activation=act, symmetry=sym, jump=jump)
+            theta = spec.init(3, torch.Generator().manual_seed(2)).numpy() * 2
+            curve = NeuralFittedCurve("f1", "x'", (-1, 1), spec, theta, in_scale=1.7, out_scale=0.3, shift=0.1)
+            z = np.linspace(-2, 2, 41)
+            assert np.allclose(curve.raw(z), curve.raw_torch(z), rtol=1e-12, atol=1e-13), (act, sym)

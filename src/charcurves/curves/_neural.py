@@ -164,14 +164,3 @@ class NeuralCurve:
             # d/d(log eps) of mu*tanh(u/eps) = -mu * sech^2(u/eps) * u/eps
             cols.append((-mu * (1 - th_ * th_) * u / eps).unsqueeze(-1))
         return y, torch.cat(cols, dim=2)
-
-    def raw_network(self, theta: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        """The network part alone (before the exact symmetry), for the symmetry penalty."""
-        return self.mlp.forward(theta[:, self.slices()["mlp"]], u)
-
-    def raw_network_jacobian(self, theta: torch.Tensor, u: torch.Tensor):
-        y, J = self.mlp.forward_jacobian(theta[:, self.slices()["mlp"]], u)
-        pad = self.n_params - J.shape[2]
-        if pad:
-            J = torch.cat([J, J.new_zeros(J.shape[0], J.shape[1], pad)], dim=2)
-        return y, J

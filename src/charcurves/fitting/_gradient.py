@@ -196,9 +196,6 @@ class BatchedProblem:
         """Total loss per model, ``(K,)``."""
         return self.residuals(theta).pow(2).sum(dim=1)
 
-    def data_loss(self, theta: torch.Tensor) -> torch.Tensor:
-        return self.residuals(theta)[:, : self.y.shape[1]].pow(2).sum(dim=1)
-
 
 @dataclasses.dataclass
 class TrainingLog:

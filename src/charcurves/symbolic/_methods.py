@@ -169,9 +169,15 @@ def _refit(traj, template, mask, parts_z: dict, gain: float):
     return out, new_const, new_gain
 
 
-def _build_model(traj, template, mask, parts_z, constant, gain, method, info, sr_meta):
-    """FittedModel with SymbolicFittedCurve curves, the gauge applied and the loss computed."""
+def _build_model(traj, template, mask, parts_z, constant, gain, method, info, sr_meta, *, g0, t0):
+    """FittedModel with SymbolicFittedCurve curves, the gauge applied and the loss computed.
+
+    Also records what SR and SR-CC both report: sample counts, the initial gain and the time.
+    """
     import sympy as sp
+
+    info = {**info, "n_samples": traj.n_samples, "n_fitted_samples": int(mask.sum()),
+            "n_sticking_samples": int((~mask).sum()), "gain_initial": float(g0)}
 
     from ..fitting._model import FittedModel
 
@@ -193,6 +199,7 @@ def _build_model(traj, template, mask, parts_z, constant, gain, method, info, sr
     model = FittedModel(template, method, curves, gain, offset, 0.0, info)
     r = model.force_residual(traj)[mask]
     model.loss = float(np.mean(r**2))
+    model.info["train_seconds"] = time.perf_counter() - t0
     return model
 
 
@@ -267,15 +274,9 @@ def fit_sr(traj: Trajectory, template: SeparableTemplate, *, symmetry=None, opti
         "decomposable_scripts": bool(decomposable and constant == 0.0),
         "operators": list(ops),
         "sr": res.summary(),
-        "n_samples": traj.n_samples,
-        "n_fitted_samples": int(mask.sum()),
-        "n_sticking_samples": int((~mask).sum()),
-        "gain_initial": float(g0),
     }
     meta = {n: {"source": "sr", "expression": str(parts_z[n])} for n in template.curve_names}
-    model = _build_model(traj, template, mask, parts_z, constant, gain, method, info, meta)
-    model.info["train_seconds"] = time.perf_counter() - t0
-    return model
+    return _build_model(traj, template, mask, parts_z, constant, gain, method, info, meta, g0=g0, t0=t0)
 
 
 def fit_sr_cc(traj: Trajectory, template: SeparableTemplate, *, symmetry=None, options=None, sr_options=None,
@@ -370,12 +371,6 @@ def fit_sr_cc(traj: Trajectory, template: SeparableTemplate, *, symmetry=None, o
         "history": history,
         "operators": {n: list(o) for n, o in ops.items()},
         "sr": {n: r.summary() for n, r in results.items()},
-        "n_samples": traj.n_samples,
-        "n_fitted_samples": int(mask.sum()),
-        "n_sticking_samples": int((~mask).sum()),
-        "gain_initial": float(g0),
     }
     meta = {n: {"source": "sr-cc", "expression": str(parts_z[n])} for n in template.curve_names}
-    model = _build_model(traj, template, mask, parts_z, constant, gain, method, info, meta)
-    model.info["train_seconds"] = time.perf_counter() - t0
-    return model
+    return _build_model(traj, template, mask, parts_z, constant, gain, method, info, meta, g0=g0, t0=t0)
