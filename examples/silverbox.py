@@ -12,8 +12,9 @@ nonlinear system identification. The script walks through what a user with such 
    coefficients and residual of a parametric equation-error fit and by free-run simulation error;
 3. fit the separable family ``x'' + f1(x') + f2(x) + b = g F`` with odd NN curves and a free gain
    (NN-CC+sym) and distil the curves into closed forms (post-SR);
-4. refine the few closed-form coefficients by output error (free-run simulation error on the
-   estimation data) -- in two input conventions, see below;
+4. refine the closed-form coefficients by output error (free-run simulation error on the
+   estimation data; charcurves.fitting._output_error.refine_output_error, what the CLI does by
+   default for free-gain records) -- in three input conventions, see below;
 5. simulate the identified models freely on the three test segments and report RMSE in mV, with a
    figure of measured vs simulated output; cross-check one run with charcurves.simulate.simulate_model.
 
@@ -30,7 +31,7 @@ Outputs in --out (default ``silverbox-out``): ``results.json`` (every number bel
 ``silverbox_curves.png`` (the NN curves, unless --no-nn) and the reloadable closed-form models
 ``model-continuous/`` and ``model-discrete-rk4/`` (charcurves.load_model).
 
-``--quick`` runs on a 4096-sample estimation slice and a 4096-sample multisine test slice (about 30 s).
+``--quick`` runs on a 4096-sample estimation slice and a 4096-sample multisine test slice (about 1 min).
 The data: ``SNLS80mV.csv`` from the benchmark's ``SilverboxFiles.zip`` (nonlinearbenchmark.org);
 give its path with --data or the environment variable SILVERBOX_CSV.
 """
@@ -147,74 +148,30 @@ def velocity_at(full, row: int, half: int = 256) -> tuple[float, float]:
 
 
 # ------------------------------------------------------------------------------------ simulation
-def upsample_bandlimited(u: np.ndarray, r: int) -> np.ndarray:
-    """Band-limited (FFT) interpolation of ``u`` onto r points per sample: length (n-1) r + 1.
+def free_run(p, u: np.ndarray, x0: float, v0: float, convention: str) -> np.ndarray:
+    """Free run of y'' = g u - c y' - k1 y - k3 y^3 - b driven by the sampled input u.
 
-    The record is extended evenly (mirrored) before the FFT so that its ends do not wrap around.
+    The library's fixed-step RK4 for sampled inputs (charcurves.simulate.rk4_sampled) on Python
+    floats: ~0.1 s for the 21 688-sample multisine test, against 50-130 s for solve_ivp through a
+    Python right-hand side (measured in the docs). NaN after a divergence.
     """
-    u = np.asarray(u, dtype=float)
-    n = u.shape[0]
-    ext = np.concatenate([u, u[-2:0:-1]])
-    m = ext.shape[0]
-    spec = np.fft.rfft(ext)
-    padded = np.zeros(m * r // 2 + 1, dtype=complex)
-    padded[: spec.shape[0]] = spec
-    if m % 2 == 0:
-        padded[m // 2] *= 0.5  # the old Nyquist bin is split between +f and -f
-    return np.fft.irfft(padded, m * r)[: (n - 1) * r + 1] * r
+    from charcurves.simulate import rk4_sampled, stage_inputs
 
-
-def input_grid(u: np.ndarray, substeps: int, interp: str) -> np.ndarray:
-    """u at every RK4 evaluation point: half sub-steps, ``2 * substeps`` per sample."""
-    r = 2 * substeps
-    if interp == "bandlimited":
-        return upsample_bandlimited(u, r)
-    n = len(u)
-    return np.interp(np.arange((n - 1) * r + 1) / r, np.arange(n), u)
-
-
-def free_run(p, ugrid: np.ndarray, x0: float, v0: float, n: int, substeps: int) -> np.ndarray:
-    """Free-run simulation of y'' = g u - c y' - k1 y - k3 y^3 - b: fixed-step RK4 on Python floats.
-
-    ``ugrid`` comes from :func:`input_grid`. A plain loop over floats is ~100x faster than a numpy
-    loop over 1-element arrays and ~1000x faster than solve_ivp through a Python right-hand side
-    (0.03 s vs 50-130 s for the 21 688-sample multisine test; measured in the docs).
-    """
+    hold, sub = CONVENTIONS[convention]
     c, k1, k3, g, b = (float(q) for q in p)
-    x, v = float(x0), float(v0)
-    dt = DT / substeps
-    hd, d6 = 0.5 * dt, dt / 6.0
-    uu = ugrid.tolist()
-    out = [x]
-    j = 0
-    for _ in range(n - 1):
-        for _ in range(substeps):
-            u0, u1, u2 = uu[j], uu[j + 1], uu[j + 2]
-            j += 2
-            a1 = g * u0 - c * v - k1 * x - k3 * x * x * x - b
-            x2, v2 = x + hd * v, v + hd * a1
-            a2 = g * u1 - c * v2 - k1 * x2 - k3 * x2 * x2 * x2 - b
-            x3, v3 = x + hd * v2, v + hd * a2
-            a3 = g * u1 - c * v3 - k1 * x3 - k3 * x3 * x3 * x3 - b
-            x4, v4 = x + dt * v3, v + dt * a3
-            a4 = g * u2 - c * v4 - k1 * x4 - k3 * x4 * x4 * x4 - b
-            x += d6 * (v + 2.0 * v2 + 2.0 * v3 + v4)
-            v += d6 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-            if not -1e6 < x < 1e6:  # diverged: fill the rest with NaN
-                return np.concatenate([out, np.full(n - len(out), np.nan)])
-        out.append(x)
-    return np.asarray(out)
+    x, _, _ = rk4_sampled(lambda x, v, u: g * u - c * v - k1 * x - k3 * x * x * x - b,
+                          *stage_inputs(u, sub, hold), float(x0), float(v0), DT, sub)
+    return x
 
 
 def simulate_segment(p, full, rows, convention: str):
     """(simulated y, measured y, seconds) on rows [a, b) of the record."""
-    interp, sub = CONVENTIONS[convention]
     a, b = rows
     u = np.asarray(full.F[a:b])
     y = np.asarray(full.x[a:b])
     x0, v0 = velocity_at(full, a)
     t0 = time.perf_counter()
-    ys = free_run(p, input_grid(u, sub, interp), x0, v0, b - a, sub)
+    ys = free_run(p, u, x0, v0, convention)
     return ys, y, time.perf_counter() - t0
 
 
@@ -264,57 +221,29 @@ def equation_error_fit(d):
     return model, p, float(np.sqrt(np.mean(resid**2)) / np.std(d.a))
 
 
-def refine_output_error(p0, est, convention: str, x0: float, v0: float) -> dict:
-    """Output-error refinement: least squares of the free-run simulation error on the estimation data.
+def refine(model, d, convention: str) -> dict:
+    """Output-error refinement by the library (charcurves.fitting._output_error.refine_output_error).
 
-    The unknowns are (c, k1, k3, g, b, y0, v0), scaled by their starting values; Levenberg-Marquardt
-    with a finite-difference Jacobian (one free run per column: 8 runs per iteration).
+    All coefficients of the closed forms, g and b are fitted to the free-run simulation of the
+    estimation split, cut into segments of 256 samples with free initial states (multiple
+    shooting), with the input reconstruction and RK4 sub-steps of ``convention``.
     """
-    from scipy.optimize import least_squares
+    from charcurves.fitting._output_error import refine_output_error
 
-    interp, sub = CONVENTIONS[convention]
-    y = np.asarray(est.x)
-    n = y.shape[0]
-    ugrid = input_grid(np.asarray(est.F), sub, interp)
-    start = np.r_[np.asarray(p0, float), x0, v0]
-    scale = np.abs(start)
-    scale[4] = max(scale[4], 0.05 * abs(start[3]) * float(np.std(est.F)))
-    scale[5] = max(scale[5], float(np.std(y)))
-    scale[6] = max(scale[6], float(np.std(y)) * 2 * np.pi * 70.0)
-    runs = [0]
-
-    def residual(q):
-        runs[0] += 1
-        theta = q * scale
-        r = free_run(theta[:5], ugrid, theta[5], theta[6], n, sub) - y
-        return np.nan_to_num(r, nan=1.0)
-
-    t0 = time.perf_counter()
-    res = least_squares(residual, start / scale, method="lm", xtol=1e-10, ftol=1e-10)
-    theta = res.x * scale
+    hold, sub = CONVENTIONS[convention]
+    refined = refine_output_error(model, d, hold=hold, substeps=sub)
+    oe = refined.info["output_error"]
     return {
-        "coefficients": theta[:5],
-        "initial_state": theta[5:],
-        "rmse_mV": float(1e3 * np.sqrt(np.mean(res.fun**2))),
-        "seconds": time.perf_counter() - t0,
-        "free_runs": runs[0],
-        "status": res.message,
+        "model": refined,
+        "coefficients": duffing_coefficients(refined) if is_duffing_structure(refined) else None,
+        "initial_state": oe.get("initial_state"),
+        "rmse_mV": 1e3 * oe.get("free_run_rmse_after", float("nan")),
+        "segmented_rmse_mV": 1e3 * oe["segmented_rmse_after"],
+        "seconds": oe["seconds"],
+        "evaluations": oe["iterations"],
+        "status": oe["status"],
+        "expressions": {k: str(c.expression()) for k, c in refined.curves.items()},
     }
-
-
-def as_model(template_model, p, method: str, d):
-    """A charcurves FittedModel (saveable, usable by simulate_model) with Duffing coefficients p."""
-    from charcurves.curves import BasisFittedCurve
-    from charcurves.fitting import FittedModel
-
-    c, k1, k3, g, b = (float(q) for q in p)
-    curves = {
-        "f1": BasisFittedCurve("f1", "x'", template_model.curves["f1"].domain, ["z"], [c]),
-        "f2": BasisFittedCurve("f2", "x", template_model.curves["f2"].domain, ["z", "z**3"], [k1, k3]),
-    }
-    model = FittedModel(template_model.template, method, curves, g, b, 0.0, {"source": "examples/silverbox.py"})
-    model.loss = float(np.mean(model.force_residual(d) ** 2))
-    return model
 
 
 # ------------------------------------------------------------------------------------ reporting
@@ -414,6 +343,7 @@ def main(argv=None) -> int:
     # ---------------------------------------------------------------- 2. NN-CC+sym, post-SR
     ee_model, p_ee, _ = equation_error_fit(d)
     closed = {"method": "parametric (f1=z; f2=z, z**3) on spectral derivatives"}
+    sr_model = None
     if not args.no_nn:
         import charcurves as cc
 
@@ -447,6 +377,7 @@ def main(argv=None) -> int:
 
             t0 = time.perf_counter()
             sr = distill_model(nn, sr_options={}, random_state=0, traj=d)
+            sr_model = sr
             timings["post_sr"] = time.perf_counter() - t0
             exprs = {k: str(c.expression()) for k, c in sr.curves.items()}
             duff = is_duffing_structure(sr)
@@ -471,20 +402,31 @@ def main(argv=None) -> int:
         f"g {p_ee[3]:.5g}, b {p_ee[4]:.1f}")
 
     # ---------------------------------------------------------------- 3. output-error refinement
-    say("\n3. output-error refinement of (c, k1, k3, g, b, y0, v0) on the estimation data")
-    x0, v0 = float(d.x[0]), float(d.v[0])
+    say("\n3. output-error refinement (library: multiple shooting, segments of 256 samples) on the estimation data")
     refined = {}
     for conv in ("continuous", "discrete-rk4", "linear-input"):
-        r = refine_output_error(p_ee, est, conv, x0, v0)
+        r = refine(ee_model, d, conv)
         refined[conv] = r
         p = r["coefficients"]
         say(f"  {conv:13s} c {p[0]:7.2f}  k1 {p[1]:.5g}  k3 {p[2]:.4g}  g {p[3]:.5g}  b {p[4]:7.1f}   "
             f"vs published (%) " + " ".join(f"{q:+.2f}" for q in rel(p, PUBLISHED))
-            + f"   estimation RMSE {r['rmse_mV']:.3f} mV  ({r['seconds']:.1f} s, {r['free_runs']} free runs)")
-    results["output_error"] = {k: {**v, "coefficients": np.asarray(v["coefficients"]).tolist(),
-                                   "initial_state": np.asarray(v["initial_state"]).tolist(),
+            + f"   estimation RMSE {r['rmse_mV']:.3f} mV  ({r['seconds']:.1f} s, {r['evaluations']} evaluations)")
+    results["output_error"] = {k: {**{kk: vv for kk, vv in v.items() if kk != "model"},
+                                   "coefficients": np.asarray(v["coefficients"]).tolist(),
                                    "rel_to_published_pct": rel(v["coefficients"], PUBLISHED)}
                                for k, v in refined.items()}
+    if sr_model is not None:
+        # what `charcurves fit ... --method nn-cc+sym+post-sr --free-gain` does by default: the post-SR
+        # closed forms as distilled (whatever their structure) refined with the library defaults
+        r = refine(sr_model, d, "linear-input")
+        say(f"  post-SR closed forms refined (library default, linear-input): f1 = {r['expressions']['f1']}, "
+            f"f2 = {r['expressions']['f2']}, g {r['model'].gain:.5g}; estimation RMSE {r['rmse_mV']:.3f} mV "
+            f"({r['seconds']:.1f} s)")
+        entry = {kk: vv for kk, vv in r.items() if kk != "model"}
+        if r["coefficients"] is not None:
+            entry["coefficients"] = np.asarray(r["coefficients"]).tolist()
+            entry["rel_to_published_pct"] = rel(r["coefficients"], PUBLISHED)
+        results["post_sr_output_error"] = entry
 
     # ---------------------------------------------------------------- 4. free run on the tests
     say("\n4. free-run simulation on the test segments (RMSE in mV)")
@@ -515,14 +457,13 @@ def main(argv=None) -> int:
     fig_path = os.path.join(args.out, "silverbox_free_run.png")
     figure(fig_path, full, tests, sims)
 
-    models = {conv: as_model(ee_model, refined[conv]["coefficients"], f"parametric+output-error ({conv})", d)
-              for conv in ("continuous", "discrete-rk4")}
+    models = {conv: refined[conv]["model"] for conv in ("continuous", "discrete-rk4")}
     for conv, m in models.items():
         m.save(os.path.join(args.out, f"model-{conv}"))
 
     # ---------------------------------------------------------------- 5. simulate_model cross-check
     if not args.no_lsoda:
-        from charcurves.simulate import simulate_model
+        from charcurves.simulate import simulate_model, stage_inputs
 
         name = first_test
         a, b = tests[name]
@@ -533,7 +474,9 @@ def main(argv=None) -> int:
         y_seg = np.asarray(full.x[a:b])
         x0s, v0s = velocity_at(full, a)
         t_fine = t_seg[0] + np.arange((b - a - 1) * 8 + 1) * DT / 8
-        u_fine = upsample_bandlimited(u_seg, 8)
+        ua, um, ub = stage_inputs(u_seg, 4, "bandlimited")  # the input on a grid of 8 points per sample
+        u_fine = np.empty(2 * ua.size + 1)
+        u_fine[0:-1:2], u_fine[1::2], u_fine[-1] = ua, um, ub[-1]
         checks = {"continuous (OE), band-limited forcing": (models["continuous"],
                                                            lambda t: np.interp(t, t_fine, u_fine))}
         if not args.quick:
@@ -547,11 +490,10 @@ def main(argv=None) -> int:
                             "rmse_mV": rmse_mV(res.x, y_seg[: res.x.size]) if res.ok else None}
             p = refined["continuous" if label.startswith("continuous") else "discrete-rk4"]["coefficients"]
             conv = "continuous" if label.startswith("continuous") else "linear-input"
-            rk = free_run(p, input_grid(u_seg, CONVENTIONS[conv][1], CONVENTIONS[conv][0]), x0s, v0s, b - a,
-                          CONVENTIONS[conv][1])
+            rk = free_run(p, u_seg, x0s, v0s, conv)
             lsoda[label]["rk4_rmse_mV"] = rmse_mV(rk, y_seg)
             say(f"  {label}: {res.status}, {res.seconds:.1f} s, RMSE {lsoda[label]['rmse_mV']} mV "
-                f"(fixed-step RK4 in this script: {lsoda[label]['rk4_rmse_mV']:.3f} mV)")
+                f"(fixed-step RK4, charcurves.simulate.rk4_sampled: {lsoda[label]['rk4_rmse_mV']:.3f} mV)")
         results["simulate_model_check"] = lsoda
 
     timings["total"] = time.perf_counter() - t_start
@@ -593,6 +535,14 @@ def summary_markdown(r: dict) -> str:
     for conv, v in r["output_error"].items():
         lines.append(f"| output error, {conv} | {fmt_coef(v['coefficients'])} | "
                      + ", ".join(f"{q:+.2f}" for q in v["rel_to_published_pct"]) + " |")
+    pso = r.get("post_sr_output_error")
+    if pso and pso.get("coefficients") is not None:
+        lines.append(f"| post-SR closed forms + output error, linear-input (the CLI's default) | "
+                     f"{fmt_coef(pso['coefficients'])} | "
+                     + ", ".join(f"{q:+.2f}" for q in pso["rel_to_published_pct"]) + " |")
+    elif pso:
+        lines += ["", f"post-SR closed forms + output error (not the Duffing structure): f1 = "
+                      f"{pso['expressions']['f1']}, f2 = {pso['expressions']['f2']}", ""]
     names = list(r["test_rows"])
     lines += ["", "## Free-run RMSE on the test segments [mV]", "",
               "| model, convention | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]

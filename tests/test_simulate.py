@@ -1,5 +1,7 @@
 """Forward simulation of fitted models and the dynamical metrics."""
 
+import time
+
 import numpy as np
 import pytest
 
@@ -26,9 +28,9 @@ def test_a_model_with_the_true_curves_reproduces_the_system(duffing):
     assert np.max(np.abs(res.x[first] - clean.x[first])) < 1e-5
 
 
-def test_neural_model_simulates_through_numpy_curves(duffing, duffing_20db):
+def test_neural_model_simulates_through_numpy_curves(duffing, duffing_nn_model):
     system, clean = duffing
-    model = cc.fit(duffing_20db, method="nn-cc+sym", random_state=0, threads=1)
+    model = duffing_nn_model
     t = np.linspace(0, 10, 250)
     res = simulate_model(model, t, 0.5, -0.5, system.forcing, time_budget=30)
     assert res.ok
@@ -48,12 +50,13 @@ def test_a_diverging_model_ends_with_a_status_not_a_hang():
 
 
 def test_time_budget_stops_a_crawling_simulation():
-    # an extremely stiff jump makes the solver crawl; the budget ends it
+    # an extremely stiff jump integrated as it is (no events) makes the solver crawl; the budget ends it
     model = symbolic_model("0.3*z + tanh(1e9*z)", "z")
     res = simulate_model(model, np.linspace(0, 1e4, 100), 0.0, 0.0, sinusoidal_forcing(2, 0.3),
-                         time_budget=0.5, method="RK45")
-    assert res.status == "timeout" and "time budget" in res.message
-    assert res.seconds < 5
+                         time_budget=0.5, method="RK45", jump="smooth")
+    assert res.status == "timeout" and "time budget of 0.5 s ran out" in res.message
+    assert res.seconds < 0.5 + 1.0  # budget + slack for one solver step and the set-up
+    assert res.t_end_reached < 1e4 and res.x.size == 0
 
 
 def test_separation_time_and_rmse():
@@ -110,3 +113,197 @@ def test_lyapunov_variational_agrees_with_two_trajectories_and_the_papers_value(
     scripts = get_system("duffing", "scripts")
     lam_s = largest_lyapunov_exponent(scripts.f1, scripts.f2, scripts.forcing, 0.5, -0.5, t_total=5000)
     assert lam_s == pytest.approx(0.128, abs=0.01)
+
+
+# ---------------------------------------------------------------------------------- dry friction
+@pytest.fixture(scope="module")
+def stick_slip():
+    from charcurves.systems import get_system
+
+    system = get_system("stick-slip")
+    return system, np.linspace(0, 80, 2001)
+
+
+def stick_slip_model(f1, system, domain=(-0.9, 0.9)):
+    curves = {"f1": SymbolicFittedCurve("f1", "x'", domain, f1),
+              "f2": SymbolicFittedCurve("f2", "x", (-1.3, 1.3), f"{system.k}*z")}
+    return FittedModel(SeparableTemplate(), "test", curves, 1.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("friction", ["sign(z)", "tanh(1e5*z)"])
+def test_true_stick_slip_as_a_model_matches_the_systems_own_sticking_simulation(stick_slip, friction):
+    system, t = stick_slip
+    truth = system.simulate(t_eval=t)
+    model = stick_slip_model(f"{system.c}*z + {system.mu_N}*{friction}", system)
+    res = simulate_model(model, t, system.x0, system.v0, system.forcing, rtol=system.rtol, atol=system.atol,
+                         time_budget=20)
+    assert res.ok and res.details["events"] and res.details["jump_height"] == pytest.approx(system.mu_N)
+    # the record sticks 9 times in 80 s: 19 switches between slip, stick and reversals
+    assert res.switches == 19
+    assert trajectory_rmse(res.x, truth.x) < 1e-8  # measured 2.6e-11
+    assert np.max(np.abs(res.v - truth.v)) < 1e-7
+    sticking = system.sticking_mask(truth)
+    assert sticking.sum() > 100 and np.all(res.v[sticking] == 0.0)
+    assert res.seconds < 5
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_event_integration_matches_the_truth_for_random_stick_slip_parameters(seed):
+    from charcurves.systems import get_system
+
+    rng = np.random.default_rng(seed)
+    params = {"k": rng.uniform(0.5, 2.0), "c": rng.uniform(0.05, 0.6), "mu_N": rng.uniform(0.2, 1.0),
+              "A": rng.uniform(1.0, 2.5), "Omega": rng.uniform(0.2, 1.0), "x0": rng.uniform(-0.5, 0.5),
+              "v0": float(rng.choice([0.0, rng.uniform(-0.5, 0.5)]))}
+    system = get_system("stick-slip", **params)
+    t = np.linspace(0, 60, 1501)
+    truth = system.simulate(t_eval=t)
+    model = stick_slip_model(f"{system.c}*z + {system.mu_N}*sign(z)", system, domain=(-3, 3))
+    res = simulate_model(model, t, system.x0, system.v0, system.forcing, rtol=system.rtol, atol=system.atol,
+                         time_budget=20)
+    assert res.ok and res.switches >= 10
+    assert np.max(np.abs(res.x - truth.x)) < 1e-8  # measured <= 8e-10
+    sticking = system.sticking_mask(truth)  # 1, 107, 328 and 566 of 1501 samples for seeds 0-3
+    assert np.all(res.v[sticking] == 0.0)
+
+
+def test_sign_friction_without_events_would_stall_but_events_finish_fast(stick_slip):
+    system, t = stick_slip
+    model = stick_slip_model(f"{system.c}*z + {system.mu_N}*sign(z)", system)
+    smooth = simulate_model(model, t, system.x0, system.v0, system.forcing, rtol=system.rtol,
+                            atol=system.atol, time_budget=1.0, jump="smooth")
+    assert smooth.status == "timeout" and smooth.seconds < 2.0
+    events = simulate_model(model, t, system.x0, system.v0, system.forcing, rtol=system.rtol,
+                            atol=system.atol, time_budget=1.0)
+    assert events.ok
+
+
+def test_the_event_loop_is_bounded_by_its_switch_cap_and_the_budget(stick_slip):
+    system, _ = stick_slip
+    model = stick_slip_model(f"{system.c}*z + {system.mu_N}*sign(z)", system)
+    t = np.linspace(0, 1e4, 250_001)
+    capped = simulate_model(model, t, system.x0, system.v0, system.forcing, max_events=20, time_budget=30)
+    assert capped.status == "solver_failed" and capped.switches == 21
+    assert capped.message.startswith("more than 20 stick/slip switches before t = ")
+    assert 0 < capped.t.size < t.size and np.all(np.isfinite(capped.x))
+    timed = simulate_model(model, t, system.x0, system.v0, system.forcing, time_budget=0.2)
+    assert timed.status == "timeout" and timed.seconds < 0.2 + 1.0
+
+
+@pytest.fixture(scope="module")
+def stick_slip_nn_model(stick_slip):
+    from charcurves.data import corrupt
+
+    system, _ = stick_slip
+    record = corrupt(system.simulate(), 20.0, on="force", seed=0)
+    return cc.CharacteristicCurves(method="nn-cc+sym", random_state=0, threads=1).fit(record).model_
+
+
+def test_fitted_stick_slip_nn_cc_sym_model_simulates_with_events(stick_slip, stick_slip_nn_model):
+    system, t = stick_slip
+    model = stick_slip_nn_model
+    mu = model.curves["f1"].components()["jump_height"]
+    assert mu == pytest.approx(system.mu_N, rel=0.05)  # jump "auto" found the dry friction
+    truth = system.simulate(t_eval=t)
+    res = simulate_model(model, t, system.x0, system.v0, system.forcing, rtol=system.rtol, atol=system.atol,
+                         time_budget=30)
+    assert res.ok and res.details["events"] and res.details["jump_height"] == pytest.approx(mu)
+    assert res.details["f1"] == "tabulated" and res.details["f2"] == "tabulated"
+    assert res.seconds < 5  # measured 0.07-0.2 s (the plain LSODA run: 0.5-1.5 s)
+    t_sep, _ = separation_time(t, res.x, truth.x)
+    assert t_sep > 0
+    assert trajectory_rmse(res.x, truth.x) < 0.05  # measured 0.011 at 20 dB
+
+
+def test_fitted_stick_slip_model_passes_the_validation_cases(stick_slip, stick_slip_nn_model):
+    from charcurves.experiments._validation import evaluate_forward, make_validation_cases
+
+    system, _ = stick_slip
+    cases = make_validation_cases(system, 4, seed=0)
+    start = time.perf_counter()
+    ev = evaluate_forward(stick_slip_nn_model, system, cases, case_time_budget=10)
+    assert [c.status for c in ev.cases] == ["ok"] * 4
+    assert max(c.rmse_x for c in ev.cases) < 0.05  # measured 0.009-0.012
+    assert time.perf_counter() - start < 10  # measured 0.4 s (LSODA on the tanh jump: 0.3-0.9 s per case)
+
+
+# ---------------------------------------------------------------------------------- fast curves
+@pytest.fixture(scope="module")
+def duffing_nn_model(duffing_20db):
+    return cc.fit(duffing_20db, method="nn-cc+sym", random_state=0, threads=1)
+
+
+def test_tabulated_and_exact_evaluation_agree(duffing, duffing_nn_model):
+    from charcurves.simulate import prepare_curve
+
+    system, _ = duffing
+    for curve in duffing_nn_model.curves.values():
+        exact = prepare_curve(curve, evaluation="exact")
+        table = prepare_curve(curve, evaluation="tabulated")
+        assert exact.evaluation == "exact" and table.evaluation == "tabulated"
+        assert table.table_error <= 1e-7
+        lo, hi = curve.domain
+        z = np.random.default_rng(0).uniform(lo - (hi - lo), hi + (hi - lo), 2000)
+        spread = np.ptp(curve(curve.grid()))
+        err = max(abs(table.smooth(zi) - float(curve(np.array([zi]))[0])) for zi in z)
+        assert err < 1e-7 * spread
+        slope_err = max(abs(table.derivative(zi) - exact.derivative(zi)) for zi in z)
+        assert slope_err < 1e-5 * spread / (hi - lo)
+        far = hi + 5 * (hi - lo)  # outside the table: the exact curve
+        assert table.smooth(far) == pytest.approx(float(curve(np.array([far]))[0]), rel=1e-12)
+    t = np.linspace(0, 20, 501)
+    runs = {ev: simulate_model(duffing_nn_model, t, 0.5, -0.5, system.forcing, rtol=1e-10, atol=1e-12,
+                               evaluation=ev) for ev in ("exact", "tabulated")}
+    assert runs["exact"].details["f1"] == "exact" and runs["tabulated"].details["f1"] == "tabulated"
+    assert np.max(np.abs(runs["exact"].x - runs["tabulated"].x)) < 1e-6  # measured 5e-9
+
+
+def test_jump_detection_in_symbolic_network_and_plain_curves(stick_slip_nn_model):
+    from charcurves.simulate import prepare_curve
+
+    def sym(expr):
+        return SymbolicFittedCurve("f1", "x'", (-0.9, 0.9), expr)
+
+    sharp = prepare_curve(sym("0.386*z + 0.801*tanh(30000*z)"))
+    assert sharp.jump_height == pytest.approx(0.801) and sharp.jump_width == pytest.approx(1 / 30000)
+    assert sharp.smooth(0.5) == pytest.approx(0.386 * 0.5)
+    assert prepare_curve(sym("0.386*z - 0.5*sign(z)")).jump_height == pytest.approx(-0.5)
+    # tanh(500 v) (the scripts' law) is smooth enough for the solver: kept, unless events are asked for
+    assert prepare_curve(sym("0.386*z + 0.801*tanh(500*z)")).jump_height == 0.0
+    assert prepare_curve(sym("0.386*z + 0.801*tanh(500*z)"), jump="events").jump_height == pytest.approx(0.801)
+    assert prepare_curve(sym("0.386*z + 0.801*sign(z)"), jump="smooth").jump_height == 0.0
+    plain = prepare_curve(lambda v: 0.2 * np.asarray(v) + 0.5 * np.sign(v))
+    assert plain.jump_height == pytest.approx(0.5) and plain.smooth(0.3) == pytest.approx(0.06)
+    nn = prepare_curve(stick_slip_nn_model.curves["f1"])
+    comp = stick_slip_nn_model.curves["f1"].components()
+    assert nn.jump_height == pytest.approx(comp["jump_height"], rel=1e-12)
+    v = 0.3
+    whole = float(stick_slip_nn_model.curves["f1"](np.array([v]))[0])
+    assert nn.smooth(v) + nn.jump_height == pytest.approx(whole, abs=1e-9)
+    # kept as a smooth curve, the network's own tanh jump is added exactly, also inside its width
+    kept = prepare_curve(stick_slip_nn_model.curves["f1"], jump="smooth", evaluation="tabulated")
+    assert kept.jump_height == 0.0 and kept.evaluation == "tabulated"
+    for z in np.array([-3.0, -0.5, 0.0, 0.5, 1.0, 3.0, 100.0]) * comp["jump_width"]:
+        assert kept.smooth(z) == pytest.approx(float(stick_slip_nn_model.curves["f1"](np.array([z]))[0]), abs=1e-9)
+
+
+def test_bad_simulation_options_give_clear_errors():
+    from charcurves import ConfigError
+    from charcurves.simulate import prepare_curve
+
+    model = symbolic_model("0.3*z", "z")
+    t = np.linspace(0, 1, 11)
+    with pytest.raises(ConfigError, match="^curve f1 has no jump at 0 to treat with events; use jump='auto'"):
+        simulate_model(model, t, 0, 0, lambda t: 0.0, jump="events")
+    with pytest.raises(ConfigError, match="^unknown curve evaluation 'fast'; choose one of auto, exact, tabulated$"):
+        simulate_model(model, t, 0, 0, lambda t: 0.0, evaluation="fast")
+    with pytest.raises(ConfigError, match="^unknown solver method 'Euler'; choose one of RK23, RK45"):
+        simulate_model(model, t, 0, 0, lambda t: 0.0, method="Euler")
+    with pytest.raises(ConfigError, match="^t_eval must be finite, strictly increasing"):
+        simulate_model(model, t[::-1], 0, 0, lambda t: 0.0)
+    with pytest.raises(ConfigError, match="^tabulated evaluation needs a curve with a domain"):
+        prepare_curve(np.tanh, evaluation="tabulated")
+    with pytest.raises(ConfigError, match="^stick_step must be a positive time step, got 0.0$"):
+        simulate_model(model, t, 0, 0, lambda t: 0.0, stick_step=0.0)
+    one = simulate_model(model, [2.0], 0.3, -0.1, lambda t: 0.0)
+    assert one.ok and one.x.tolist() == [0.3] and one.v.tolist() == [-0.1]

@@ -41,6 +41,7 @@ _LAZY = {
     "ModelFileError": "charcurves._errors",
     "NotFittedError": "charcurves._errors",
     "SimulationError": "charcurves._errors",
+    "FitError": "charcurves._errors",
     "IdentifiabilityError": "charcurves._errors",
 }
 

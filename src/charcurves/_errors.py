@@ -10,6 +10,7 @@ __all__ = [
     "CharCurvesError",
     "DataError",
     "ConfigError",
+    "FitError",
     "NotFittedError",
     "ModelFileError",
     "SimulationError",
@@ -43,3 +44,7 @@ class ModelFileError(CharCurvesError, OSError):
 
 class SimulationError(CharCurvesError, RuntimeError):
     """A forward simulation could not be carried out."""
+
+
+class FitError(CharCurvesError, RuntimeError):
+    """A fit failed numerically (every training start diverged)."""

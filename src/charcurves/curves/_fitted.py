@@ -9,7 +9,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .._errors import ModelFileError
-from ._neural import NeuralCurve
+from ._neural import NeuralCurve, jump_log_eps
 
 __all__ = ["FittedCurve", "NeuralFittedCurve", "BasisFittedCurve", "SymbolicFittedCurve", "curve_from_spec",
            "register_curve_kind", "parse_basis_function"]
@@ -115,7 +115,7 @@ class NeuralFittedCurve(FittedCurve):
         sl = spec.slices()
         lin = self.theta[:, sl["linear"]].reshape(-1, 1) if "linear" in sl else None
         mu = self.theta[:, sl["jump_height"]].reshape(-1, 1) if spec.jump else None
-        eps = np.exp(self.theta[:, sl["jump_log_eps"]]).reshape(-1, 1) if spec.jump else None
+        eps = np.exp(jump_log_eps(self.theta[:, sl["jump_log_eps"]])).reshape(-1, 1) if spec.jump else None
         sym = spec.exact_symmetry
         s_in, s_out = self.in_scale, self.out_scale
 
@@ -166,7 +166,7 @@ class NeuralFittedCurve(FittedCurve):
             out["linear_slope"] = float(self.theta[:, sl["linear"]].mean() * self.out_scale / self.in_scale)
         if self.spec.jump:
             out["jump_height"] = float(self.theta[:, sl["jump_height"]].mean() * self.out_scale)
-            out["jump_width"] = float(np.exp(self.theta[:, sl["jump_log_eps"]]).mean() * self.in_scale)
+            out["jump_width"] = float(np.exp(jump_log_eps(self.theta[:, sl["jump_log_eps"]])).mean() * self.in_scale)
         out["ensemble_members"] = int(self.theta.shape[0])
         return out
 
@@ -277,12 +277,15 @@ _ALLOWED_NAMES = set(_ALLOWED_FUNCS) | {"z", "abs", "pi", "E"}
 _ALLOWED_OPS = {"+", "-", "*", "/", "**", "(", ")", ","}
 
 
-def first_disallowed_token(text: str, name_ok, ops) -> str | None:
+def first_disallowed_token(text: str, name_ok, ops, *, cost_guard: bool = True) -> str | None:
     """The first token of ``text`` that is not a number, an allowed name (``name_ok(name)``) or an
     operator in ``ops``; "" when the text cannot be tokenized; None when every token is allowed.
 
-    This is the safety check run before sympy parses text from files or engines (sympy's parser
-    evaluates Python code, so nothing else may reach it)."""
+    This is the safety check run before sympy parses text from users, files or engines (sympy's
+    parser evaluates Python code, so nothing else may reach it). With ``cost_guard`` (the default)
+    a text made only of allowed tokens is also refused with a ConfigError when sympy's exact
+    arithmetic on it could hang (``9**9**9``; see ``expression_cost_problem``).
+    """
     import io
     import tokenize
 
@@ -298,6 +301,15 @@ def first_disallowed_token(text: str, name_ok, ops) -> str | None:
         if tok.type == tokenize.OP and tok.string in ops:
             continue
         return tok.string
+    if cost_guard:
+        # lazy: the bounds live with the model loader, which checks files before building curves
+        from .._errors import ConfigError
+        from ..fitting._model import expression_cost_problem
+
+        problem = expression_cost_problem(text)
+        if problem:
+            raise ConfigError(f"{text.strip()[:60]!r} {problem}; write a plain closed form with small exponents "
+                              "such as 'z**3' or 'tanh(50*z)'")
     return None
 
 

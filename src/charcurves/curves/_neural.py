@@ -20,9 +20,31 @@ import torch
 from .._errors import ConfigError
 from ._mlp import ACTIVATIONS, BatchedMLP
 
-__all__ = ["NeuralCurve", "SYMMETRIES"]
+__all__ = ["NeuralCurve", "SYMMETRIES", "jump_log_eps"]
 
 SYMMETRIES = ("none", "odd", "even")
+
+#: The jump width eps (in scaled units, |u| <= 1 on the data) is kept in [1e-7, 1] by a smooth
+#: map of its raw parameter: wider than the data range it only trades with the linear part (and
+#: eps -> inf with mu -> inf overflows); narrower than 1e-7 it is a step either way.
+_LOG_EPS_LO, _LOG_EPS_HI = math.log(1e-7), 0.0
+
+
+def jump_log_eps(raw):
+    """log(eps) from the raw parameter: identity inside the range, smoothly saturating at its ends
+    (torch tensors or numpy arrays)."""
+    if isinstance(raw, torch.Tensor):
+        sp = torch.nn.functional.softplus
+        return _LOG_EPS_HI - sp((_LOG_EPS_HI - _LOG_EPS_LO) - sp(raw - _LOG_EPS_LO))
+    import numpy as np
+
+    sp = lambda x: np.logaddexp(0.0, x)  # noqa: E731
+    return _LOG_EPS_HI - sp((_LOG_EPS_HI - _LOG_EPS_LO) - sp(np.asarray(raw, dtype=float) - _LOG_EPS_LO))
+
+
+def _dlog_eps(raw: torch.Tensor) -> torch.Tensor:
+    inner = torch.nn.functional.softplus(raw - _LOG_EPS_LO)
+    return torch.sigmoid((_LOG_EPS_HI - _LOG_EPS_LO) - inner) * torch.sigmoid(raw - _LOG_EPS_LO)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -131,7 +153,7 @@ class NeuralCurve:
             y = y + theta[:, sl["linear"]] * u
         if self.jump:
             mu = theta[:, sl["jump_height"]]
-            eps = torch.exp(theta[:, sl["jump_log_eps"]])
+            eps = torch.exp(jump_log_eps(theta[:, sl["jump_log_eps"]]))
             y = y + mu * torch.tanh(u / eps)
         return y
 
@@ -157,10 +179,11 @@ class NeuralCurve:
             cols.append(u.unsqueeze(-1))
         if self.jump:
             mu = theta[:, sl["jump_height"]]
-            eps = torch.exp(theta[:, sl["jump_log_eps"]])
+            raw = theta[:, sl["jump_log_eps"]]
+            eps = torch.exp(jump_log_eps(raw))
             th_ = torch.tanh(u / eps)
             y = y + mu * th_
             cols.append(th_.unsqueeze(-1))
-            # d/d(log eps) of mu*tanh(u/eps) = -mu * sech^2(u/eps) * u/eps
-            cols.append((-mu * (1 - th_ * th_) * u / eps).unsqueeze(-1))
+            # d/d(log eps) of mu*tanh(u/eps) = -mu * sech^2(u/eps) * u/eps, times d(log eps)/d(raw)
+            cols.append((-mu * (1 - th_ * th_) * u / eps * _dlog_eps(raw)).unsqueeze(-1))
         return y, torch.cat(cols, dim=2)

@@ -11,7 +11,7 @@ import numpy as np
 
 from .._errors import DataError
 
-__all__ = ["Trajectory", "MIN_SAMPLES"]
+__all__ = ["Trajectory", "MultiTrajectory", "MIN_SAMPLES"]
 
 #: Fewest samples any fitting method accepts (a degree-10 polynomial per curve needs 22).
 MIN_SAMPLES = 30
@@ -44,6 +44,21 @@ def _as_column(name: str, values: Any, n: int | None) -> np.ndarray:
             "remove or interpolate those rows (e.g. --rows to select a clean span)"
         )
     return arr
+
+
+def _closest_column(wanted: str, columns: list) -> str | None:
+    """The column name most like ``wanted`` (case first, then spelling), or None if none is close."""
+    import difflib
+
+    same_case = [c for c in columns if str(c).lower() == wanted.lower()]
+    if same_case:
+        return same_case[0]
+    lowered = {str(c).lower(): c for c in columns}
+    close = difflib.get_close_matches(wanted.lower(), list(lowered), n=1, cutoff=0.5)
+    if close:
+        return lowered[close[0]]
+    prefixed = [c for c in columns if str(c).lower().startswith(wanted.lower())]  # "t" -> "time"
+    return prefixed[0] if prefixed else None
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -130,8 +145,8 @@ class Trajectory:
 
         def need(col: str, what: str) -> np.ndarray:
             if col not in columns:
-                close = [c for c in columns if str(c).lower() == col.lower()]
-                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                close = _closest_column(col, columns)
+                hint = f" (did you mean {close!r}?)" if close is not None else ""
                 raise DataError(
                     f"no column {col!r} for {what}{hint}; the file has {columns}; "
                     f"name the right one with --{what}-col"
@@ -155,8 +170,10 @@ class Trajectory:
                 )
             t = np.arange(n_all) / rate
         else:
+            close = _closest_column(str(time_col), columns) if time_col is not None else None
+            hint = f" (did you mean {close!r}?)" if close is not None else ""
             raise DataError(
-                f"no time column {time_col!r} in {columns}; name it with --time-col "
+                f"no time column {time_col!r}{hint} in {columns}; name it with --time-col "
                 "or give --sample-rate HZ"
             )
         v = np.asarray(df[v_col]) if v_col and v_col in columns else None
@@ -248,6 +265,161 @@ class Trajectory:
 
     def to_csv(self, path: str | os.PathLike) -> None:
         """Write ``t,x[,v][,a],F`` with a header (atomically)."""
+        from ..io._csv import write_csv_columns
+
+        write_csv_columns(path, self.to_columns())
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class MultiTrajectory:
+    """A record of a forced system with several degrees of freedom (named states and forcings).
+
+    Parameters
+    ----------
+    t : array (N,)
+        Strictly increasing sample times.
+    states : dict of str to array (N,)
+        Displacements by name, e.g. ``{"x1": ..., "x2": ...}``.
+    forces : dict of str to array (N,)
+        Measured forcings by name, e.g. ``{"F1": ..., "F2": ...}``.
+    velocities, accelerations : dict of str to array (N,), optional
+        Given derivatives of every state (keys as in ``states``).
+    name : str
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0, 10, 100)
+    >>> tr = MultiTrajectory(t, {"x1": np.sin(t), "x2": np.cos(t)}, {"F1": t * 0, "F2": np.sin(2 * t)})
+    >>> tr.n_samples, tr.has_derivatives
+    (100, False)
+    """
+
+    t: np.ndarray
+    states: dict
+    forces: dict
+    velocities: dict | None = None
+    accelerations: dict | None = None
+    name: str = "trajectory"
+
+    def __post_init__(self) -> None:
+        t = _as_column("t", self.t, None)
+        n = t.shape[0]
+        if n < 2:
+            raise DataError(f"a trajectory needs at least 2 samples, got {n}; give a longer record")
+        if (np.diff(t) <= 0).any():
+            row = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
+            raise DataError(f"time does not increase at row {row}; time stamps must be strictly increasing: "
+                            "sort the rows and drop duplicates")
+        t.setflags(write=False)
+        object.__setattr__(self, "t", t)
+        if not self.states or not self.forces:
+            raise DataError("a multi-DOF record needs at least one state and one forcing column")
+
+        def freeze(d, what):
+            out = {}
+            for k, v in d.items():
+                arr = _as_column(str(k), v, n)
+                arr.setflags(write=False)
+                out[str(k)] = arr
+            return out
+
+        object.__setattr__(self, "states", freeze(self.states, "state"))
+        object.__setattr__(self, "forces", freeze(self.forces, "forcing"))
+        for key in ("velocities", "accelerations"):
+            d = getattr(self, key)
+            if d is not None:
+                missing = sorted(set(self.states) - set(d))
+                if missing:
+                    raise DataError(f"{key} are missing for {missing}; give them for every state or for none")
+                object.__setattr__(self, key, freeze({k: d[k] for k in self.states}, key))
+
+    @classmethod
+    def from_columns(cls, columns, *, states=None, forces=None, name: str = "trajectory",
+                     time_col: str = "t", rows: slice | None = None) -> "MultiTrajectory":
+        """Build from a mapping of column name to values: ``t``, states ``x1, x2, ...``, forcings
+        ``F1, F2, ...`` and optional derivatives ``v1, a1, v2, a2, ...`` (velocity and acceleration of
+        ``x1``, ``x2``...).
+
+        ``states``/``forces`` name the columns to use; by default every ``x<k>`` and ``F<k>`` column.
+        """
+        import re
+
+        names = list(columns.keys()) if isinstance(columns, Mapping) else list(columns.columns)
+        if time_col not in names:
+            raise DataError(f"no time column {time_col!r} in {names}; name it with --time-col")
+        states = list(states) if states else [c for c in names if re.fullmatch(r"x\d+", str(c))]
+        forces = list(forces) if forces else [c for c in names if re.fullmatch(r"F\d+", str(c))]
+        for need, what in ((states, "state"), (forces, "forcing")):
+            missing = [c for c in need if c not in names]
+            if missing or not need:
+                raise DataError(f"no {what} column {missing[0] if missing else ''!r} in {names}; a multi-DOF record has "
+                                "columns t,x1,x2,F1,F2 (optionally v1,a1,v2,a2)")
+        pick = (lambda arr: np.asarray(arr)[rows]) if rows is not None else np.asarray
+
+        def derivs(prefix):
+            keys = {s: prefix + s[1:] for s in states}
+            have = [s for s, k in keys.items() if k in names]
+            if not have:
+                return None
+            if len(have) != len(states):
+                raise DataError(f"derivative columns {[keys[s] for s in have]} are given but "
+                                f"{[keys[s] for s in states if s not in have]} are not; give all or none")
+            return {s: pick(columns[k]) for s, k in keys.items()}
+
+        return cls(pick(columns[time_col]), {s: pick(columns[s]) for s in states},
+                   {f: pick(columns[f]) for f in forces}, derivs("v"), derivs("a"), name)
+
+    @classmethod
+    def from_csv(cls, path: str | os.PathLike, **kwargs: Any) -> "MultiTrajectory":
+        """Read ``t,x1,x2,F1,F2[,v1,a1,v2,a2]`` (header row; any column order)."""
+        from ..io._csv import read_csv_columns
+
+        kwargs.setdefault("name", os.path.splitext(os.path.basename(os.fspath(path)))[0])
+        return cls.from_columns(read_csv_columns(path), **kwargs)
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def dt(self) -> float:
+        return float(np.median(np.diff(self.t)))
+
+    @property
+    def has_derivatives(self) -> bool:
+        return self.velocities is not None and self.accelerations is not None
+
+    def require_samples(self, n_min: int, what: str) -> None:
+        if self.n_samples < n_min:
+            raise DataError(f"{what} needs at least {n_min} samples, the record has {self.n_samples}; "
+                            "give a longer record")
+
+    def replace(self, **changes: Any) -> "MultiTrajectory":
+        return dataclasses.replace(self, **changes)
+
+    def dof(self, state: str, force: str | None = None) -> Trajectory:
+        """One state as a :class:`Trajectory` (with ``force``, or the first forcing, as F)."""
+        F = self.forces[force or next(iter(self.forces))]
+        return Trajectory(self.t, self.states[state], F,
+                          None if self.velocities is None else self.velocities[state],
+                          None if self.accelerations is None else self.accelerations[state], name=self.name)
+
+    def to_columns(self) -> dict[str, np.ndarray]:
+        cols = {"t": self.t}
+        for s, x in self.states.items():
+            cols[s] = x
+        for s in self.states:
+            k = s[1:]
+            if self.velocities is not None:
+                cols["v" + k] = self.velocities[s]
+            if self.accelerations is not None:
+                cols["a" + k] = self.accelerations[s]
+        cols.update(self.forces)
+        return cols
+
+    def to_csv(self, path: str | os.PathLike) -> None:
+        """Write ``t,x1,x2,...[,v1,a1,...],F1,F2,...`` with a header (atomically)."""
         from ..io._csv import write_csv_columns
 
         write_csv_columns(path, self.to_columns())

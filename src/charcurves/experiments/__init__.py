@@ -7,6 +7,7 @@ run_sweep(sweep, store_path, ...)          run what the store lacks (local proce
 ResultsStore(path)                         SQLite rows, completed_keys(), to_dataframe(), to_csv()
 make_validation_cases(system, n, seed=)    random conditions whose true trajectory stays in the box
 evaluate_forward(model, system, cases)     t_sep (ε = 0.2, censored) and RMSE[x] per case
+run_benchmark(out_dir, ...)                the paper's study: sweeps, tables, figures, report.md/.html
 
 Examples
 --------
@@ -16,6 +17,8 @@ Examples
 12
 """
 
+from ._benchmark import BenchmarkResult as BenchmarkResult
+from ._benchmark import run_benchmark as run_benchmark
 from ._runner import Job as Job
 from ._runner import RunSettings as RunSettings
 from ._runner import run_unit as run_unit
@@ -46,6 +49,7 @@ from ._validation import make_validation_cases as make_validation_cases
 from ._validation import training_box as training_box
 
 __all__ = [
+    "BenchmarkResult",
     "CaseResult",
     "EXECUTORS",
     "ForwardEvaluation",
@@ -71,6 +75,7 @@ __all__ = [
     "paper_grid",
     "plan_units",
     "quick_grid",
+    "run_benchmark",
     "run_sweep",
     "run_unit",
     "training_box",

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import ConfigError, DataError
+from .._errors import ConfigError, DataError, IdentifiabilityError
 from ..curves._neural import SYMMETRIES, NeuralCurve
 from ..data._trajectory import MIN_SAMPLES, Trajectory
 from ..templates._separable import get_template
@@ -123,18 +123,27 @@ class CharacteristicCurves:
     Parameters
     ----------
     family : str
-        The template family ("separable": x'' + f1(x') + f2(x) = g F).
+        The template family ("separable": x'' + f1(x') + f2(x) = g F; "first-order",
+        "position-damping", "two-dof": see docs/families.md).
     method : str
         One of :data:`METHODS` ("nn-cc", "nn-cc+sym", "parametric").
     symmetry : str or dict, optional
         Parity priors per curve, e.g. "f1=odd,f2=odd". ``+sym`` methods default to odd curves.
+        "auto" tests the parity of unconstrained curves first and imposes only what the data
+        support (see :mod:`charcurves.selection._symmetry`); the decision is in
+        ``model.info["symmetry_auto"]``.
     free_gain : bool
         Learn the input gain g (otherwise g = ``gain``).
     gain : float
     gain_on : {"force", "acceleration"}
         With a free gain: which measured side is noisy and so the regression target (see
         SeparableTemplate).
-    gauge : {"f2", "f1"}
+    gauge : str, optional
+        The curve(s) anchored at 0 to fix the constants curves can trade (separable: "f2" by
+        default, or "f1"; two-dof: "f2,f4"). None takes the family's default.
+    equation : str, optional
+        A user-written template instead of a family, e.g. "x'' + a1*x' + f1(x) = F" (several
+        equations separated by ';'); see docs/families.md.
         The curve anchored at 0 (fixes the constant the curves can trade).
     preset : {"default", "paper"} or TrainingPreset
         Training settings of neural curves.
@@ -161,6 +170,14 @@ class CharacteristicCurves:
         Torch threads during training (None leaves torch's setting).
     device : str
         "cpu" or "cuda".
+    refine : {"none", "output-error", "auto"}
+        After the fit, refine the closed-form curves' coefficients, the gain and the constant by
+        output error (free-run simulation error on the record; see
+        :func:`charcurves.fitting._output_error.refine_output_error`). "auto" does so for free-gain
+        fits with closed-form curves and estimated derivatives (measured records), else nothing.
+    refine_options : dict, optional
+        hold ("linear" default, "zoh", "bandlimited"), substeps (4), segment_length (256),
+        max_nfev, time_budget (s).
 
     Examples
     --------
@@ -173,18 +190,20 @@ class CharacteristicCurves:
     """
 
     def __init__(self, family: str = "separable", method: str = "nn-cc+sym", *, symmetry=None,
-                 free_gain: bool = False, gain: float = 1.0, gauge: str = "f2", gain_on: str = "force",
+                 free_gain: bool = False, gain: float = 1.0, gauge: str | None = None, gain_on: str = "force",
                  preset="default",
                  derivatives: str = "auto", jump: str | Sequence[str] = "auto", basis=None,
                  options: dict | None = None, sr_options: dict | None = None, exclude_sticking: bool = True, hidden: Sequence[int] | None = None,
                  activation: str | None = None, random_state: int = 0, threads: int | None = None,
-                 device: str = "cpu", progress: Callable | None = None):
+                 device: str = "cpu", progress: Callable | None = None, equation: str | None = None,
+                 refine: str = "none", refine_options: dict | None = None):
         self.family = family
         self.method = method
         self.symmetry = symmetry
         self.free_gain = free_gain
         self.gain = gain
         self.gauge = gauge
+        self.equation = equation
         self.gain_on = gain_on
         self.preset = preset
         self.derivatives = derivatives
@@ -199,6 +218,8 @@ class CharacteristicCurves:
         self.threads = threads
         self.device = device
         self.progress = progress
+        self.refine = refine
+        self.refine_options = refine_options
 
     # scikit-learn's parameter contract
     def get_params(self, deep: bool = True) -> dict[str, Any]:
@@ -216,12 +237,66 @@ class CharacteristicCurves:
         return self
 
     # ------------------------------------------------------------------ configuration
+    def _check_numeric_options(self) -> None:
+        """Seed, threads and gain must be usable numbers; say which one is not before any work starts."""
+        def is_int(value) -> bool:
+            return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+        if not is_int(self.random_state) or self.random_state < 0:
+            raise ConfigError(f"the seed (random_state) must be a non-negative integer, got {self.random_state!r}; "
+                              "give e.g. --seed 0")
+        if self.threads is not None and (not is_int(self.threads) or self.threads < 1):
+            raise ConfigError(f"threads must be a positive integer, got {self.threads!r}; give e.g. --threads 1")
+        try:
+            gain = float(self.gain)
+        except (TypeError, ValueError):
+            gain = float("nan")
+        if not np.isfinite(gain) or gain == 0:
+            raise ConfigError(f"the fixed gain must be a finite non-zero number, got {self.gain!r}; give e.g. gain=1.0")
+
+    def _check_basis_cost(self) -> None:
+        """Refuse basis functions whose exact evaluation by sympy could hang (e.g. ``9**9**9*z``)."""
+        import re
+
+        from ._model import expression_cost_problem
+
+        if isinstance(self.basis, str):
+            texts = re.split(r"[;,=]", self.basis)
+        elif isinstance(self.basis, dict):
+            texts = [str(f) for v in self.basis.values() for f in (v if isinstance(v, (list, tuple)) else [v])]
+        else:
+            return
+        for text in texts:
+            problem = expression_cost_problem(text.strip())
+            if problem:
+                raise ConfigError(f"basis function {text.strip()[:60]!r} {problem}; write a plain closed form "
+                                  "such as 'z**3' or 'tanh(50*z)'")
+
+    def _check_device(self) -> None:
+        """A torch device that exists on this machine (only neural curves use one)."""
+        import torch
+
+        try:
+            device = torch.device(self.device)
+        except (RuntimeError, TypeError, ValueError):
+            raise ConfigError(f"unknown device {self.device!r}; use --device cpu or cuda") from None
+        if device.type == "cuda" and not torch.cuda.is_available():
+            raise ConfigError(f"device {self.device!r} asked for, but CUDA is not available on this machine; "
+                              "use --device cpu")
+        if device.type not in ("cpu", "cuda"):
+            raise ConfigError(f"device {self.device!r} is not supported; use --device cpu or cuda")
+
     def _resolve(self):
         if self.method not in METHODS:
             raise ConfigError(f"unknown method {self.method!r}; choose one of {', '.join(METHODS)}")
         spec = METHODS[self.method]
+        self._check_numeric_options()
+        self._check_basis_cost()
         free_gain = bool(self.free_gain) or bool(spec.get("free_gain", False))
-        template = get_template(self.family, free_gain=free_gain, gain=float(self.gain), gauge=self.gauge,
+        from ..templates._general import check_equation_option
+
+        check_equation_option(self.equation)
+        template = get_template(self.family, equation=self.equation, free_gain=free_gain, gain=float(self.gain), gauge=self.gauge,
                                 gain_on=self.gain_on)
         names = template.curve_names
         sym = parse_symmetry(self.symmetry, names)
@@ -245,6 +320,11 @@ class CharacteristicCurves:
     def _prepare(self, traj: Trajectory, sym: dict[str, str], template) -> Trajectory:
         from ..data._differentiate import estimate_derivatives
 
+        if getattr(template, "is_general", False):  # families beyond separable, user-written equations
+            from ..templates._fit import prepare_record
+
+            return prepare_record(traj, template, sym, self.derivatives, f"method {self.method}",
+                                  without_prior=self._without_prior)
         if not isinstance(traj, Trajectory):
             raise DataError(f"fit expects a Trajectory, got {type(traj).__name__}; build one with Trajectory.from_csv/from_arrays")
         traj.require_samples(MIN_SAMPLES, f"method {self.method}")
@@ -254,14 +334,33 @@ class CharacteristicCurves:
                             "use --derivatives spline|spectral|savgol to estimate them")
         if not (method in ("auto", "given") and traj.has_derivatives):
             traj = estimate_derivatives(traj.replace(v=None, a=None), "auto" if method == "given" else method)
+        try:
+            template.check_excitation(traj)
+        except DataError as exc:  # no excitation: the data cannot determine the curves at all
+            raise IdentifiabilityError(f"no excitation: {exc}") from None
+        if template.free_gain and np.ptp(np.asarray(traj.F)) == 0:
+            raise IdentifiabilityError(
+                "the forcing F is constant over the record, so the gain g cannot be told apart from a constant "
+                "offset (not identifiable); drop --free-gain (free_gain=False) or give a record with varying forcing"
+            )
         for name, z in template.arguments_of(traj).items():
             if sym[name] != "none" and (z.min() >= 0 or z.max() <= 0):
-                raise DataError(
-                    f"a {sym[name]} prior on {name} needs its argument {template.arguments[name]} on both sides of 0, "
-                    f"but the record covers only [{z.min():.3g}, {z.max():.3g}]; drop the prior or give a record "
-                    "that crosses 0"
+                raise IdentifiabilityError(
+                    f"an {sym[name]} prior on {name} needs its argument {template.arguments[name]} on both "
+                    f"sides of 0, but the record covers only [{z.min():.3g}, {z.max():.3g}], so the prior can be "
+                    f"neither checked nor used; {self._without_prior(name, sym)} or give a record that crosses 0"
                 )
         return traj
+
+    def _without_prior(self, name: str, sym: dict[str, str]) -> str:
+        """How to ask for the same fit without the parity prior on ``name`` (for error messages)."""
+        kept = {n: v for n, v in sym.items() if n != name and v != "none"}
+        if kept:
+            return "drop it (--sym " + ",".join(f"{n}={'none' if n == name else sym[n]}" for n in sym) + ")"
+        if METHODS[self.method]["symmetry"]:  # +sym would impose odd curves again
+            plain = self.method.replace("+sym", "")
+            return f"drop it (use --method {plain})"
+        return "drop it (leave out --sym)"
 
     # ------------------------------------------------------------------ fitting
     def fit(self, traj: Trajectory) -> CharacteristicCurves:
@@ -271,36 +370,100 @@ class CharacteristicCurves:
 
     def fit_many(self, trajectories: Sequence[Trajectory], seeds: Sequence[int] | None = None) -> list[FittedModel]:
         """Fit many records (noise realisations, SNR levels...); neural curves train in one batch."""
+        if isinstance(self.symmetry, str) and self.symmetry.strip().lower() == "auto":
+            from ..selection._symmetry import fit_many_auto  # detect parities, then fit with them
+
+            return fit_many_auto(self, trajectories, seeds)
+        self._check_refine()  # before the fit: a bad option must not cost a long run
         models, prepared = self._fit_many_raw(trajectories, seeds)
         if METHODS[self.method]["post_sr"]:
             distill = _load(_DISTILL)
             if seeds is None:
                 seeds = [self.random_state + i for i in range(len(models))]
-            models = [distill(m, sr_options=dict(self.sr_options or {}), random_state=int(s), traj=tr)
-                      for m, s, tr in zip(models, seeds, prepared)]
+            # a fit stopped by Ctrl-C keeps its networks as they are: distilling them would start
+            # another long search the user just asked to stop. Ctrl-C during post-SR keeps the
+            # finished networks of the models not distilled yet (Operon does not watch for Ctrl-C:
+            # it takes effect when the current curve's search returns, seconds by default)
+            stop = any(m.info.get("interrupted") for m in models)
+            done = []
+            for m, s, tr in zip(models, seeds, prepared):
+                if not stop:
+                    try:
+                        done.append(distill(m, sr_options=dict(self.sr_options or {}), random_state=int(s), traj=tr))
+                        continue
+                    except KeyboardInterrupt:
+                        stop = True
+                m.info["post_sr"] = "skipped: interrupted"
+                done.append(m)
+            models = done
             for m in models:
                 m.method = self.method
-        return models
+                if stop:  # the whole call ends interrupted: nothing further (refinement) runs
+                    m.info["interrupted"] = True
+        return self._refine_models(models, trajectories, prepared)
+
+    def _check_refine(self) -> None:
+        from ._output_error import REFINE_MODES, check_refine_options
+
+        if self.refine not in REFINE_MODES:
+            raise ConfigError(f"unknown refine {self.refine!r}; choose one of {', '.join(REFINE_MODES)}")
+        check_refine_options(self.refine_options)
+        spec = METHODS.get(self.method, {})
+        if self.refine == "output-error" and spec.get("representation") == "neural" and not spec.get("post_sr"):
+            raise ConfigError(f"refine='output-error' needs closed-form curves, but {self.method} learns neural "
+                              f"curves; use {self.method}+post-sr (or parametric, poly-cc, sindy), or refine='none'")
+
+    def _refine_models(self, models, trajectories, prepared):
+        """Output-error refinement (``refine``) of each fitted model on its own record."""
+        if self.refine == "none":
+            return models
+        from ._output_error import refine_output_error
+
+        out = []
+        stop = any(m.info.get("interrupted") for m in models)
+        for m, original, tr in zip(models, trajectories, prepared):
+            closed = all(c.expression() is not None for c in m.curves.values())
+            wanted = self.refine == "output-error" or (
+                not getattr(m.template, "is_general", False) and closed
+                and getattr(m.template, "free_gain", False) and not self._given(original))
+            if wanted and not stop:
+                try:
+                    out.append(refine_output_error(m, tr, **dict(self.refine_options or {})))
+                    continue
+                except KeyboardInterrupt:  # keep the finished fit, unrefined, and say so
+                    stop = True
+            if wanted and stop:
+                m.info["refine"] = "skipped: interrupted"
+            out.append(m)
+        if stop:  # the whole call ends interrupted
+            for m in out:
+                m.info["interrupted"] = True
+        return out
 
     def _fit_many_raw(self, trajectories, seeds):
         template, spec, sym, jumps = self._resolve()
         trajs = [self._prepare(tr, sym, template) for tr in trajectories]
         if seeds is None:
             seeds = [self.random_state + i for i in range(len(trajs))]
+        if getattr(template, "is_general", False):
+            from ..templates._fit import fit_general
+
+            return fit_general(self, template, spec, sym, jumps, trajs, seeds), trajs
         if jumps == "none":
-            jumps = []
+            jumps_of = [() for _ in trajs]
         elif jumps == "auto":
             from ..templates._separable import sticking_mask
 
-            velocity = [n for n, var in template.variables.items() if var == "v"]
+            velocity = tuple(n for n, var in template.variables.items() if var == "v")
             auto_ok = spec["representation"] == "neural" and get_preset(self.preset).auto_jump
-            jumps = []
-            if auto_ok:
-                sticks = any(sticking_mask(tr, rel_tol=None if self._given(tr) else 0.01).any() for tr in trajs)
-                # without sticking phases, a jump is added when the data call for it (every record of a
-                # batch gets the same curve layout, so one significant record decides)
-                if sticks or any(dry_friction_test(tr, template)[0] > JUMP_F_THRESHOLD for tr in trajs):
-                    jumps = velocity
+            # decided per record (sticking phases, or the dry-friction F test); records with
+            # different curve layouts train in different batches
+            jumps_of = [velocity if auto_ok and (
+                sticking_mask(tr, rel_tol=None if self._given(tr) else 0.01).any()
+                or dry_friction_test(tr, template)[0] > JUMP_F_THRESHOLD) else () for tr in trajs]
+        else:
+            jumps_of = [tuple(jumps) for _ in trajs]
+        jumps = sorted({j for js in jumps_of for j in js})
         if spec["representation"] in _FITTERS:
             if jumps:
                 raise ConfigError(f"--jump applies to neural curves, not to method {self.method!r}")
@@ -322,24 +485,25 @@ class CharacteristicCurves:
                               stick_tol=None if self._given(tr) else 0.01) for tr in trajs], trajs
         from ._neural_fit import fit_neural
 
+        self._check_device()
         preset = get_preset(self.preset)
-        curves = {
-            name: NeuralCurve(
-                hidden=tuple(self.hidden) if self.hidden else preset.hidden,
-                activation=self.activation or preset.activation,
-                symmetry=sym[name],
-                symmetry_mode=preset.symmetry_mode,
-                linear_term=preset.linear_term,
-                jump=name in jumps,
-            )
-            for name in template.curve_names
-        }
         given = all(self._given(tr) for tr in trajectories)
-        groups: dict[int, list[int]] = {}
+        groups: dict[tuple, list[int]] = {}
         for i, tr in enumerate(trajs):
-            groups.setdefault(tr.n_samples, []).append(i)
+            groups.setdefault((tr.n_samples, jumps_of[i]), []).append(i)
         out: list[FittedModel | None] = [None] * len(trajs)
-        for idx in groups.values():
+        for (_, layout), idx in groups.items():
+            curves = {
+                name: NeuralCurve(
+                    hidden=tuple(self.hidden) if self.hidden else preset.hidden,
+                    activation=self.activation or preset.activation,
+                    symmetry=sym[name],
+                    symmetry_mode=preset.symmetry_mode,
+                    linear_term=preset.linear_term,
+                    jump=name in layout,
+                )
+                for name in template.curve_names
+            }
             models = fit_neural([trajs[i] for i in idx], template, curves, preset, [int(seeds[i]) for i in idx],
                                 method=self.method, exclude_sticking=self.exclude_sticking,
                                 stick_tol=None if given else 0.01, device=self.device, threads=self.threads,

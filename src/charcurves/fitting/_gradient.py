@@ -75,7 +75,7 @@ class BatchedProblem:
             sl = term.curve.slices()["mlp"]
             decay[self.offsets[i] + sl.start : self.offsets[i] + sl.stop] = True
         use_decay = self.bayesian or (float(torch.as_tensor(self.weight_decay).max()) > 0)
-        self.decay_index = torch.nonzero(decay).flatten() if use_decay else None
+        self.decay_index = torch.nonzero(decay).flatten().to(self.y.device) if use_decay else None
         self.set_weight_decay(self.weight_decay)
         self.n_used = (self.weights > 0).sum(dim=1).to(self.y.dtype)
         self.gamma = None
@@ -187,7 +187,7 @@ class BatchedProblem:
         if self.decay_index is not None:
             m = self.decay_index.numel()
             Jd = theta.new_zeros(K, m, self.n_params)
-            Jd[:, torch.arange(m), self.decay_index] = self._sqrt_wd.expand(K, 1) if self._sqrt_wd.dim() else self._sqrt_wd
+            Jd[:, torch.arange(m, device=theta.device), self.decay_index] = self._sqrt_wd.expand(K, 1) if self._sqrt_wd.dim() else self._sqrt_wd
             r.append(self._sqrt_wd * theta[:, self.decay_index])
             J.append(Jd)
         return torch.cat(r, dim=1), torch.cat(J, dim=1)
@@ -210,16 +210,24 @@ class TrainingLog:
 def _adam(problem, theta, steps, lr, stop_loss, log, progress, holder, check_every=100):
     theta = theta.clone().requires_grad_(True)
     opt = torch.optim.Adam([theta], lr=lr)
-    done = torch.zeros(theta.shape[0], dtype=torch.bool)
+    done = torch.zeros(theta.shape[0], dtype=torch.bool, device=theta.device)
+    # a model whose loss turns non-finite goes back to its last finite weights and stops there
+    diverged = torch.zeros_like(done)
+    last_good = theta.detach().clone()
     for step in range(steps):
         opt.zero_grad(set_to_none=True)
         per_model = problem.loss(theta)
         per_model.sum().backward()
         if step % check_every == 0 or step == steps - 1:
             with torch.no_grad():
-                done = per_model.detach() < stop_loss
-            log.history.append(("adam", step, float(per_model.detach().mean())))
-            holder["theta"] = theta.detach().clone()
+                bad = ~torch.isfinite(per_model.detach())
+                if bool(bad.any()):
+                    diverged |= bad
+                    theta[bad] = last_good[bad]
+                last_good = theta.detach().clone()
+                done = (per_model.detach() < stop_loss) | diverged
+            log.history.append(("adam", step, float(per_model.detach()[~diverged].mean())))
+            holder["theta"] = last_good
             if progress is not None:
                 progress("adam", step, steps, float(per_model.detach().mean()))
             if bool(done.all()):
@@ -254,14 +262,15 @@ def _evidence_update(problem, theta, JtJ, r):
     n_used = problem.n_used
     idx = problem.decay_index
     m = idx.numel()
-    lam = torch.as_tensor(problem.weight_decay, dtype=theta.dtype).expand(K)
+    lam = torch.as_tensor(problem.weight_decay, dtype=theta.dtype, device=theta.device).expand(K)
     mask = torch.zeros(P, dtype=theta.dtype, device=theta.device)
     mask[idx] = 1.0
     # data part of J^T J (in raw units): remove the decay rows' lambda * I_w, undo the 1/sqrt(N) scaling
     JtJ_data = (JtJ - torch.diag_embed(lam.view(K, 1) * mask)) * n_used.view(K, 1, 1)
     E_D = r[:, :N].pow(2).sum(1) * n_used
     E_W = theta[:, idx].pow(2).sum(1).clamp_min(1e-12)
-    gamma_prev = problem.gamma if problem.gamma is not None else torch.full((K,), float(m), dtype=theta.dtype)
+    gamma_prev = problem.gamma if problem.gamma is not None else torch.full((K,), float(m), dtype=theta.dtype,
+                                                                                        device=theta.device)
     beta = ((n_used - gamma_prev) / (2 * E_D)).clamp_min(1e-12)
     alpha = lam * beta * n_used
     H = 2 * beta.view(K, 1, 1) * JtJ_data + torch.diag_embed(2 * alpha.view(K, 1) * mask + 1e-10)
@@ -314,7 +323,7 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
             # re-estimate the decay of the models that moved; the objective changes with it,
             # so the decay rows of the residuals and Jacobian are refreshed under the new value
             lam_new, gamma = _evidence_update(problem, theta, J.transpose(1, 2) @ J, r)
-            lam_old = torch.as_tensor(problem.weight_decay).expand(K)
+            lam_old = torch.as_tensor(problem.weight_decay, device=theta.device).expand(K)
             problem.set_weight_decay(torch.where(accept & active, lam_new, lam_old))
             problem.refresh_decay_rows(theta, r, J)  # only the decay rows depend on the decay
             cost = r.pow(2).sum(1)

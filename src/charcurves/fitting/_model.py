@@ -14,7 +14,7 @@ from ..curves._fitted import FittedCurve, curve_from_spec
 from ..io._csv import atomic_write_bytes
 from ..templates._separable import SeparableTemplate, get_template
 
-__all__ = ["FittedModel", "FORMAT_VERSION", "load_model"]
+__all__ = ["FittedModel", "FORMAT_VERSION", "MODEL_SCHEMA", "load_model", "validate_model_document"]
 
 FORMAT_VERSION = 1
 _MODEL_JSON = "model.json"
@@ -54,14 +54,24 @@ class FittedModel:
 
     def acceleration(self, t, x, v, F) -> np.ndarray:
         """x'' implied by the model: g F - f1(x') - f2(x) - b."""
+        if getattr(self.template, "is_general", False):
+            raise ConfigError(f"acceleration() is the separable family's; for the {self.template.family} template "
+                              "use force_residual(record) or charcurves.simulate.simulate_model")
         return self.gain * np.asarray(F) - self.curves["f1"](v) - self.curves["f2"](x) - self.offset
 
     def force_residual(self, traj) -> np.ndarray:
         """x'' + f1 + f2 + b - g F on a trajectory with derivatives."""
+        if getattr(self.template, "is_general", False):  # every equation of a general template: (N,) or (N, E)
+            from ..templates._fit import template_residual
+
+            return template_residual(self, traj)
         return np.asarray(traj.a) - self.acceleration(traj.t, traj.x, traj.v, traj.F)
 
     def rhs(self, forcing):
         """Right-hand side ``f(t, [x, v])`` for scipy's solve_ivp with forcing ``F(t)``."""
+        if getattr(self.template, "is_general", False):
+            raise ConfigError(f"rhs() is the separable family's; simulate a {self.template.family} model with "
+                              "charcurves.simulate.simulate_model")
         f1, f2, g, b = self.curves["f1"], self.curves["f2"], self.gain, self.offset
 
         def fun(t, y):
@@ -85,6 +95,10 @@ class FittedModel:
                 f"curves {missing} are not symbolic; distil them first (a method with +post-sr) "
                 "or use a basis method"
             )
+        if getattr(self.template, "is_general", False):  # one Eq, or a list of Eq for several equations
+            from ..templates._fit import template_to_sympy
+
+            return template_to_sympy(self)
         t = sp.Symbol("t")
         x = sp.Function("x")(t)
         F = sp.Function("F")(t)
@@ -126,19 +140,35 @@ class FittedModel:
             "gain": self.gain,
             "gain_free": self.template.free_gain,
             "offset": self.offset,
-            "gauge": f"{self.template.gauge}(0) = 0",
+            "gauge": (f"{self.template.gauge}(0) = 0" if not getattr(self.template, "is_general", False)
+                      else ", ".join(self.info.get("gauge_conditions", [])) or "none (no constant to trade)"),
             "loss": self.loss,
             "curves": curves,
-            "info": _jsonable(self.info),
+            **({"scalars": dict(self.info.get("scalars", {}))} if getattr(self.template, "is_general", False) else {}),
+            # symmetry="auto": the parities imposed and the tests behind them (charcurves.selection)
+            **({"symmetry": _jsonable(self.info["symmetry_auto"])} if "symmetry_auto" in self.info else {}),
+            # uncertainty bands from an ensemble, when computed (charcurves.selection.attach_bands)
+            **({"bands": _jsonable(self.bands)} if getattr(self, "bands", None) else {}),
+            "info": _split_timings(_jsonable(self.info))[0],
         }
+
+    def timings(self) -> dict[str, float]:
+        """Wall-clock times recorded in ``info`` (keys ending in "seconds"), by dotted path.
+
+        They are left out of :meth:`result_dict`, which therefore depends only on the inputs and
+        the seed (bit-identical on reruns on the same machine).
+        """
+        return _split_timings(_jsonable(self.info))[1]
 
     # ------------------------------------------------------------------ persistence
     def save(self, directory: str | os.PathLike) -> None:
-        """Write ``model.json`` (readable spec) and ``arrays.safetensors`` atomically."""
+        """Write ``model.json`` (readable spec) and ``arrays.safetensors`` atomically.
+
+        A new directory appears complete or not at all; see docs/model-format.md.
+        """
         from safetensors.numpy import save as st_save
 
         d = os.fspath(directory)
-        os.makedirs(d, exist_ok=True)
         arrays: dict[str, np.ndarray] = {}
         curve_specs = []
         for c in self.curves.values():
@@ -161,8 +191,33 @@ class FittedModel:
         import hashlib
 
         doc["arrays_sha256"] = hashlib.sha256(blob).hexdigest()
+        text = json.dumps(doc, indent=2).encode()
+        if not os.path.exists(d):
+            # a new model appears all at once: written in a temporary sibling, then renamed
+            import shutil
+            import tempfile
+
+            parent = os.path.dirname(os.path.abspath(d))
+            os.makedirs(parent, exist_ok=True)
+            tmp = tempfile.mkdtemp(dir=parent, prefix=".tmp-model-")
+            try:
+                atomic_write_bytes(os.path.join(tmp, _ARRAYS), blob)
+                atomic_write_bytes(os.path.join(tmp, _MODEL_JSON), text)
+                os.rename(tmp, d)
+                return
+            except OSError:
+                if os.path.exists(d) and os.path.isdir(d):
+                    pass  # created meanwhile by someone else: overwrite it file by file below
+                else:
+                    raise
+            finally:
+                shutil.rmtree(tmp, ignore_errors=True)
+        if not os.path.isdir(d):
+            raise ModelFileError(f"{d!r} is a file, not a model directory; give a directory path to save to")
+        # overwriting: each file is replaced atomically and model.json, written last, is the commit
+        # point; an interruption in between leaves arrays that load() rejects by their checksum
         atomic_write_bytes(os.path.join(d, _ARRAYS), blob)
-        atomic_write_bytes(os.path.join(d, _MODEL_JSON), json.dumps(doc, indent=2).encode())
+        atomic_write_bytes(os.path.join(d, _MODEL_JSON), text)
 
     @classmethod
     def load(cls, directory: str | os.PathLike) -> FittedModel:
@@ -182,27 +237,33 @@ def load_model(directory: str | os.PathLike) -> FittedModel:
     d = os.fspath(directory)
     jpath = os.path.join(d, _MODEL_JSON)
     apath = os.path.join(d, _ARRAYS)
+    if not os.path.isdir(d):
+        what = "is missing (does not exist)" if not os.path.exists(d) else "is not a directory"
+        raise ModelFileError(f"model directory {d!r} {what}; give the directory a model was saved to")
     try:
         with open(jpath, "rb") as fh:
-            doc = json.loads(fh.read().decode("utf-8"))
+            raw = fh.read()
         with open(apath, "rb") as fh:
             blob = fh.read()
     except FileNotFoundError as exc:
         raise ModelFileError(f"{exc.filename!r} is missing; give the directory a model was saved to") from None
-    except (UnicodeDecodeError, json.JSONDecodeError):
-        raise ModelFileError(f"{jpath!r} is not valid JSON; the model file is corrupted") from None
-    if not isinstance(doc, dict) or doc.get("format") != "charcurves-model":
-        raise ModelFileError(f"{jpath!r} is not a charcurves model file")
-    version = doc.get("format_version")
-    if version != FORMAT_VERSION:
-        raise ModelFileError(
-            f"model format version {version!r} is not supported (this charcurves reads version "
-            f"{FORMAT_VERSION}); re-fit the model or upgrade charcurves"
-        )
-    if hashlib.sha256(blob).hexdigest() != doc.get("arrays_sha256"):
-        raise ModelFileError(f"{apath!r} does not match its checksum; the model file is corrupted")
+    except OSError as exc:
+        raise ModelFileError(f"{exc.filename!r} cannot be read ({exc.strerror}); check its permissions") from None
     try:
-        arrays = st_load(blob)
+        doc = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):
+        raise ModelFileError(f"{jpath!r} is not valid JSON (truncated or damaged); the model file is corrupted, "
+                             "re-save or re-fit the model") from None
+    validate_model_document(doc, jpath)
+    if hashlib.sha256(blob).hexdigest() != doc["arrays_sha256"]:
+        raise ModelFileError(f"{apath!r} does not match the checksum in model.json; the model file is corrupted, "
+                             "re-save or re-fit the model")
+    try:
+        try:
+            arrays = st_load(blob)
+        except Exception as exc:  # safetensors raises its own error type for a damaged header
+            raise ModelFileError(f"{apath!r} is not a readable safetensors file ({type(exc).__name__}); "
+                                 "the model file is corrupted, re-save or re-fit the model") from None
         tdoc = dict(doc["template"])
         family = tdoc.pop("family")
         template = get_template(family, **tdoc)
@@ -212,10 +273,202 @@ def load_model(directory: str | os.PathLike) -> FittedModel:
             curves[c.name] = c
         return FittedModel(template, doc["method"], curves, doc["gain"], doc["offset"], doc["loss"],
                            doc.get("info", {}))
-    except ModelFileError:
+    except ModelFileError as exc:
+        message = str(exc)
+        if not any(fix in message for fix in ("re-save", "re-fit", "upgrade")):  # the curve readers' own errors
+            raise ModelFileError(f"{jpath!r}: {message}; re-fit the model or upgrade charcurves") from None
         raise
     except (KeyError, TypeError, ValueError) as exc:
-        raise ModelFileError(f"{jpath!r} is incomplete or corrupted ({type(exc).__name__}: {exc})") from None
+        detail = str(exc).splitlines()[0] if str(exc) else ""
+        raise ModelFileError(f"{jpath!r} is incomplete or corrupted ({type(exc).__name__}: {detail}); "
+                             "re-save or re-fit the model") from None
+
+
+# ---------------------------------------------------------------------- model.json schema
+# A plain-Python schema (docs/model-format.md describes the same): a type per key, nested dicts
+# for objects, a one-element list for "list of". Keys may be added in later releases of the same
+# format version, so unknown keys are ignored; missing or mistyped ones are errors.
+_NUMBER = "number"
+_TEMPLATE_SCHEMA = {"family": str}
+_CURVE_SCHEMA = {"kind": str, "name": str, "argument": str, "domain": [_NUMBER], "shift": _NUMBER}
+_CURVE_KIND_SCHEMA = {
+    "neural": {"network": {"hidden": [int], "activation": str, "symmetry": str, "symmetry_mode": str,
+                           "linear_term": bool, "jump": bool},
+               "in_scale": _NUMBER, "out_scale": _NUMBER},
+    "basis": {"basis": [str]},
+    "symbolic": {"expression": str},
+}
+MODEL_SCHEMA = {
+    "format": str,
+    "format_version": int,
+    "template": _TEMPLATE_SCHEMA,
+    "method": str,
+    "gain": _NUMBER,
+    "offset": _NUMBER,
+    "loss": _NUMBER,
+    "curves": [_CURVE_SCHEMA],
+    "info": dict,
+    "arrays_sha256": str,
+}
+
+
+def _type_name(value) -> str:
+    return {dict: "an object", list: "a list", str: "a string", bool: "a boolean", type(None): "null"}.get(
+        type(value), "a number" if isinstance(value, (int, float)) else type(value).__name__)
+
+
+def _check(value, schema, where: str, jpath: str) -> None:
+    def fail(expected: str):
+        raise ModelFileError(f"{jpath!r}: {where} must be {expected}, not {_type_name(value)}; the model file is "
+                             "corrupted or was edited by hand, re-save or re-fit the model")
+
+    if isinstance(schema, dict):
+        if not isinstance(value, dict):
+            fail("an object")
+        for key, sub in schema.items():
+            if key not in value:
+                raise ModelFileError(f"{jpath!r}: {where}.{key} is missing; the model file is incomplete, "
+                                     "re-save or re-fit the model")
+            _check(value[key], sub, f"{where}.{key}", jpath)
+    elif isinstance(schema, list):
+        if not isinstance(value, list):
+            fail("a list")
+        for i, item in enumerate(value):
+            _check(item, schema[0], f"{where}[{i}]", jpath)
+    elif schema == _NUMBER:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            fail("a number")
+    elif schema is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            fail("an integer")
+    elif schema is dict:
+        if not isinstance(value, dict):
+            fail("an object")
+    elif not isinstance(value, schema):
+        fail({str: "a string", bool: "true or false"}.get(schema, schema.__name__))
+
+
+def validate_model_document(doc, jpath: str = _MODEL_JSON) -> None:
+    """Check a parsed model.json against :data:`MODEL_SCHEMA`; raise ModelFileError naming the first problem.
+
+    The format and its version are checked first, so a file from a newer charcurves is reported as
+    such rather than as a schema mismatch.
+    """
+    if not isinstance(doc, dict) or doc.get("format") != "charcurves-model":
+        raise ModelFileError(f"{jpath!r} is not a charcurves model file (no \"format\": \"charcurves-model\"); "
+                             "give the directory a model was saved to")
+    version = doc.get("format_version")
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise ModelFileError(f"{jpath!r} has an invalid format_version {version!r}; the model file is corrupted, "
+                             "re-save or re-fit the model")
+    if version > FORMAT_VERSION:
+        raise ModelFileError(f"{jpath!r}: model format version {version} is not supported by this charcurves, "
+                             f"which reads version {FORMAT_VERSION} (the file comes from a newer release); "
+                             "upgrade charcurves (pip install -U charcurves)")
+    if version != FORMAT_VERSION:  # pragma: no cover - no older version exists yet
+        raise ModelFileError(f"{jpath!r} has model format version {version}, which this charcurves no longer "
+                             f"reads (it reads {FORMAT_VERSION}); re-fit the model")
+    _check(doc, MODEL_SCHEMA, "model", jpath)
+    sha = doc["arrays_sha256"]
+    if len(sha) != 64 or any(ch not in "0123456789abcdef" for ch in sha):
+        raise ModelFileError(f"{jpath!r}: model.arrays_sha256 is not a sha256 hex digest; the model file is "
+                             "corrupted, re-save or re-fit the model")
+    names = []
+    for i, curve in enumerate(doc["curves"]):
+        where = f"model.curves[{i}]"
+        if len(curve["domain"]) != 2:
+            raise ModelFileError(f"{jpath!r}: {where}.domain must be [low, high]; the model file is corrupted, "
+                                 "re-save or re-fit the model")
+        kind_schema = _CURVE_KIND_SCHEMA.get(curve["kind"])
+        if kind_schema is not None:  # other kinds (register_curve_kind) check themselves
+            _check(curve, kind_schema, where, jpath)
+        texts = [curve["expression"]] if curve["kind"] == "symbolic" else list(curve.get("basis") or [])
+        for text in texts:
+            problem = expression_cost_problem(text)
+            if problem:
+                raise ModelFileError(f"{jpath!r}: {where} has the expression {text[:60]!r}, which {problem}; "
+                                     "refusing to load it, re-fit the model")
+        names.append(curve["name"])
+    if len(set(names)) != len(names) or not names:
+        raise ModelFileError(f"{jpath!r}: curve names {names} are empty or repeated; the model file is corrupted, "
+                             "re-save or re-fit the model")
+
+
+#: bounds that keep sympy's exact arithmetic cheap on expressions read from files
+_MAX_EXPONENT_LITERAL = 100
+_MAX_EXPONENT_LITERALS = 2
+_MAX_POWER_GROWTH = 1e5  # product of the exponents of powers nested in one another's bases
+_MAX_LITERAL_DIGITS = 30
+_MAX_EXPRESSION_CHARS = 2000
+
+
+def expression_cost_problem(text: str) -> str | None:
+    """Why parsing ``text`` could hang (e.g. ``9**9**9``, which sympy evaluates exactly), or None.
+
+    The text is only parsed by Python's ``ast`` (nothing is evaluated): powers may not nest
+    in their exponent, which may hold at most two numbers of magnitude <= 100; powers nested in
+    bases may multiply their exponents up to 1e5; numbers have at most 30 digits. Fitted curves
+    stay far inside these bounds.
+    """
+    import ast
+
+    if len(text) > _MAX_EXPRESSION_CHARS:
+        return f"is longer than {_MAX_EXPRESSION_CHARS} characters"
+    try:
+        tree = ast.parse(text.replace("^", "**"), mode="eval")
+    except (SyntaxError, ValueError, RecursionError, MemoryError):
+        return None  # not Python syntax: the token check of the curve parser refuses it with its own message
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, (int, float, complex)):
+            digits = sum(ch.isdigit() for ch in repr(node.value))
+            if digits > _MAX_LITERAL_DIGITS:
+                return f"holds a number with more than {_MAX_LITERAL_DIGITS} digits"
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
+            inner = list(ast.walk(node.right))
+            if any(isinstance(n, ast.BinOp) and isinstance(n.op, ast.Pow) for n in inner):
+                return "nests a power in an exponent (exact evaluation could take forever)"
+            numbers = [n.value for n in inner if isinstance(n, ast.Constant) and isinstance(n.value, (int, float))]
+            if len(numbers) > _MAX_EXPONENT_LITERALS or any(abs(v) > _MAX_EXPONENT_LITERAL for v in numbers):
+                return "raises to an exponent too large to evaluate exactly"
+    if _power_growth(tree.body) > _MAX_POWER_GROWTH:
+        return "nests powers whose exponents multiply beyond what can be evaluated exactly"
+    return None
+
+
+def _power_growth(node) -> float:
+    """Largest product of exponent sizes along a chain of powers nested in bases, e.g. ((a**3)**4) -> 12."""
+    import ast
+
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
+        size = 1.0
+        for n in ast.walk(node.right):
+            if isinstance(n, ast.Constant) and isinstance(n.value, (int, float)):
+                size *= max(1.0, abs(float(n.value)))
+        return size * _power_growth(node.left)
+    return max([_power_growth(child) for child in ast.iter_child_nodes(node)], default=1.0)
+
+
+def _split_timings(obj, path: str = ""):
+    """``(obj without keys ending in "seconds", {dotted path: value} of those keys)``."""
+    timings: dict[str, float] = {}
+    if isinstance(obj, dict):
+        clean = {}
+        for key, value in obj.items():
+            sub = f"{path}.{key}" if path else str(key)
+            if str(key).endswith("seconds") and isinstance(value, (int, float)) and not isinstance(value, bool):
+                timings[sub] = value
+                continue
+            clean[key], inner = _split_timings(value, sub)
+            timings.update(inner)
+        return clean, timings
+    if isinstance(obj, list):
+        out = []
+        for i, value in enumerate(obj):
+            item, inner = _split_timings(value, f"{path}[{i}]")
+            out.append(item)
+            timings.update(inner)
+        return out, timings
+    return obj, timings
 
 
 def _jsonable(obj):

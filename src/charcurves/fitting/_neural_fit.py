@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import contextlib
+import math
 import time
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from .._errors import ConfigError, DataError
+from .._errors import ConfigError, DataError, FitError
 from ..curves._fitted import NeuralFittedCurve
 from ..curves._neural import NeuralCurve
 from ..data._trajectory import Trajectory
@@ -49,7 +50,7 @@ def fit_neural(
     device: str = "cpu",
     threads: int | None = None,
     progress: Callable | None = None,
-    chunk_models: int = 48,
+    chunk_models: int | None = None,
 ) -> list[FittedModel]:
     """Fit K records (equal lengths) as one batched computation; returns K fitted models.
 
@@ -111,7 +112,7 @@ def fit_neural(
     w_np = rep([m / np.sqrt(m.sum()) for m in masks])
     w = T(w_np)
 
-    from ._gradient import BatchedProblem, CurveTerm, train
+    from ._gradient import BatchedProblem, CurveTerm
 
     terms = []
     for name in names:
@@ -146,28 +147,33 @@ def fit_neural(
     with torch_threads(threads):
         # Models are independent, so they train in chunks: the Jacobians of a chunk stay small
         # enough for the cache and memory stays bounded, with results identical to one batch.
+        # (48 on a CPU, where small Jacobians stay in cache; a GPU wants the whole batch at once)
+        if chunk_models is None:
+            chunk_models = 48 if torch.device(device).type == "cpu" else 4096
         chunk = max(R, (chunk_models // R) * R)
-        parts, logs = [], []
-        for start in range(0, KR, chunk):
-            sub = problem.subset(slice(start, start + chunk))
-            th, lg = train(sub, theta0[start:start + chunk], adam_steps=preset.adam_steps,
-                           adam_lr=preset.adam_lr, lm_max_iter=preset.lm_max_iter, lm_tol=preset.lm_tol,
-                           stop_loss=preset.stop_loss, progress=progress)
-            parts.append(th)
-            logs.append((start, sub, lg))
-        theta = torch.cat(parts, dim=0)
+        theta, logs = train_in_chunks(problem, theta0, chunk, progress=progress, adam_steps=preset.adam_steps,
+                                      adam_lr=preset.adam_lr, lm_max_iter=preset.lm_max_iter, lm_tol=preset.lm_tol,
+                                      stop_loss=preset.stop_loss)
+        theta = _profile_jump_widths(problem, theta)
         log = _merge_logs([lg for _, _, lg in logs])
         with torch.no_grad():
             total_loss = torch.cat([sub.loss(theta[s:s + sub.K]) for s, sub, _ in logs]).double().cpu().numpy()
-            decay = torch.cat([torch.as_tensor(sub.weight_decay, dtype=theta.dtype).expand(sub.K)
+            decay = torch.cat([torch.as_tensor(sub.weight_decay, dtype=theta.dtype, device=theta.device).expand(sub.K)
                                for _, sub, _ in logs])
     elapsed = time.perf_counter() - t_start
     theta = theta.double().cpu()
+    # a jump whose tanh is saturated at every fitted sample has a width the data cannot see:
+    # take the sharpest law they allow (Coulomb's sign) rather than an arbitrary width
+    unresolved_jump = _sharpen_unresolved_jumps(problem, theta)
 
     # ---------------------------------------------------------------- assemble fitted models
     models = []
     for k in range(K):
         losses = total_loss[k * R:(k + 1) * R]
+        if not np.isfinite(losses).any():
+            raise FitError(f"every training start of record {k} diverged to a non-finite loss; check the record "
+                           "for outliers or try --preset default / another seed")
+        losses = np.where(np.isfinite(losses), losses, np.inf)  # a diverged start never joins
         best = int(np.argmin(losses))
         if preset.combine == "mean":
             members = np.flatnonzero(losses <= losses[best] * (1.0 + preset.combine_tol))
@@ -216,6 +222,11 @@ def fit_neural(
             "weight_decay": float(decay[k * R + best]),
             "effective_parameters": (log.effective_parameters[k * R + best] if log.effective_parameters else None),
         }
+        if log.interrupted:  # say what this record's own chunk did: finished, interrupted or never trained
+            own = chunk_log(logs, k * R)
+            info.update(adam_steps=own.adam_steps, lm_iterations=own.lm_iterations, stopped_by=own.stopped_by)
+        if unresolved_jump is not None:
+            info["jump_width_unresolved"] = bool(unresolved_jump[k * R + members].all())
         model = FittedModel(template, method, fitted, g, offset, 0.0, info)
         resid = model.force_residual(trajectories[k])[masks[k]]
         model.loss = float(np.mean(resid**2))  # the combined model's own data loss
@@ -235,6 +246,46 @@ def _gain_estimate(args, a, F, mask, fallback):
     return float(1.0 / h) if np.isfinite(h) and h != 0 else float(fallback)
 
 
+def train_in_chunks(problem, theta0, chunk: int, *, progress=None, **train_options):
+    """Train the models of ``problem`` ``chunk`` rows at a time: ``(theta, [(start, subproblem, log)])``.
+
+    Ctrl-C ends the whole call: the chunk in training keeps its best weights so far, the chunks
+    after it are not trained (their models keep their initial weights; their log says
+    ``stopped_by="not trained: interrupted"``), and every chunk's log is marked interrupted, so
+    no caller starts further work (post-SR, refinement) on any model of an interrupted call.
+    """
+    import torch
+
+    from ._gradient import TrainingLog, train
+
+    parts, logs = [], []
+    interrupted = False
+    for start in range(0, problem.K, chunk):
+        sub = problem.subset(slice(start, start + chunk))
+        lg = None
+        if not interrupted:
+            try:
+                th, lg = train(sub, theta0[start:start + chunk], progress=progress, **train_options)
+            except KeyboardInterrupt:  # outside train's own handler: the chunk keeps its initial weights
+                lg = None
+            interrupted = lg is None or lg.interrupted
+        if lg is None:
+            th, lg = theta0[start:start + chunk].detach(), TrainingLog(stopped_by="not trained: interrupted")
+        parts.append(th)
+        logs.append((start, sub, lg))
+    if interrupted:
+        for _, sub, lg in logs:
+            lg.interrupted = True
+            if len(lg.effective_parameters) != sub.K:  # stopped before LM: keep rows aligned with models
+                lg.effective_parameters = [None] * sub.K
+    return torch.cat(parts, dim=0), logs
+
+
+def chunk_log(logs, row: int):
+    """The log of the chunk that trained model row ``row`` (see :func:`train_in_chunks`)."""
+    return next(lg for start, sub, lg in logs if start <= row < start + sub.K)
+
+
 def _merge_logs(logs):
     from ._gradient import TrainingLog
 
@@ -248,9 +299,71 @@ def _merge_logs(logs):
     return out
 
 
+def _profile_jump_widths(problem, theta, n_grid: int = 33):
+    """Profile each jump's width over a grid (the parts that enter linearly refitted by least
+    squares at each width) and keep the best, the sharpest among near-ties.
+
+    The loss is flat in the width wherever the few samples near the jump sit on the tanh's
+    linear part or its saturated tails, so gradient steps leave it wherever they started; a
+    profile finds the width the data support (a true step for Coulomb friction with slipping
+    samples at tiny |x'|, 1/500 for the tanh(500 x') law)."""
+    import torch
+
+    terms = [(i, t) for i, t in enumerate(problem.terms) if "jump_log_eps" in t.curve.slices()]
+    if not terms:
+        return theta
+    N = problem.y.shape[1]
+    data_loss = lambda th: problem.residuals(th)[:, :N].pow(2).sum(dim=1)  # noqa: E731
+    with torch.no_grad():
+        best = theta.clone()
+        best_loss = data_loss(_warm_start(problem, best))
+        keep = best_loss <= data_loss(best)
+        best = torch.where(keep.unsqueeze(1), _warm_start(problem, best), best)
+        best_loss = torch.minimum(best_loss, data_loss(theta))
+        for i, term in terms:
+            j = problem.offsets[i] + term.curve.slices()["jump_log_eps"].start
+            # from wide to sharp, so that a sharper width must be strictly (relatively) better only
+            # against a wider one; near-ties then go to the sharper width
+            for raw in torch.linspace(-0.5, -16.5, n_grid, dtype=theta.dtype):
+                trial = best.clone()
+                trial[:, j] = raw
+                trial = _warm_start(problem, trial)
+                loss = data_loss(trial)
+                better = torch.isfinite(loss) & (loss <= best_loss * (1 + 1e-9))
+                best = torch.where(better.unsqueeze(1), trial, best)
+                best_loss = torch.where(better, loss, best_loss)
+    return best
+
+
+def _sharpen_unresolved_jumps(problem, theta, saturation: float = 10.0):
+    """Set the width of each jump with |u| >= saturation * eps at every fitted sample to its lower
+    bound (eps = 1e-7 of the range), in place. The fit changes by at most mu * (1 - tanh(10)),
+    about 4e-9 mu, at the samples. Returns a per-model flag, or None without jump curves."""
+    import torch
+
+    from ..curves._neural import jump_log_eps
+
+    flags = None
+    used = problem.weights.detach().cpu() > 0
+    for i, term in enumerate(problem.terms):
+        sl = term.curve.slices()
+        if "jump_log_eps" not in sl:
+            continue
+        j = problem.offsets[i] + sl["jump_log_eps"].start
+        u = term.u.detach().cpu().double().abs()
+        d_min = torch.where(used, u, torch.full_like(u, math.inf)).min(dim=1).values
+        eps = torch.exp(jump_log_eps(theta[:, j]))
+        unresolved = d_min >= saturation * eps
+        theta[unresolved, j] = -60.0  # maps onto the lower bound of the width
+        flags = unresolved.numpy() if flags is None else (flags & unresolved.numpy())
+    return flags
+
+
 def _warm_start(problem, theta0):
     """Least squares for the parts that enter linearly (linear terms, jump heights, gain, constant)."""
     import torch
+
+    from ..curves._neural import jump_log_eps
 
     with torch.no_grad():
         N = problem.y.shape[1]
@@ -263,7 +376,7 @@ def _warm_start(problem, theta0):
                 cols.append(term.u if m is None else term.u * m)
                 idx.append(o + sl["linear"].start)
             if "jump_height" in sl:
-                eps = torch.exp(theta0[:, o + sl["jump_log_eps"].start]).unsqueeze(1)
+                eps = torch.exp(jump_log_eps(theta0[:, o + sl["jump_log_eps"].start])).unsqueeze(1)
                 c = torch.tanh(term.u / eps)
                 cols.append(c if m is None else c * m)
                 idx.append(o + sl["jump_height"].start)

@@ -6,6 +6,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .._errors import SimulationError
+
 __all__ = ["separation_time", "trajectory_rmse", "largest_lyapunov_exponent"]
 
 
@@ -29,50 +31,101 @@ def trajectory_rmse(x_model, x_true) -> float:
     return float(np.sqrt(np.mean(d * d))) if n else float("nan")
 
 
-def _derivative(f: Callable, h_rel: float = 1e-6) -> Callable:
-    def df(z):
-        z = np.asarray(z, dtype=float)
-        h = h_rel * np.maximum(1.0, np.abs(z))
-        return (np.asarray(f(z + h)) - np.asarray(f(z - h))) / (2 * h)
+def _scalar_curve(f: Callable, df: Callable | None, evaluation: str):
+    """Scalar value and derivative functions of a curve for the tangent dynamics.
 
-    return df
+    Fitted curves go through :func:`charcurves.simulate.prepare_curve` (a checked spline table
+    with its analytic derivative for networks, sympy derivatives for symbolic curves); plain
+    callables are evaluated as given, with central differences unless ``df`` is passed.
+    """
+    from ..simulate import prepare_curve
+
+    prepared = prepare_curve(f, evaluation=evaluation if hasattr(f, "domain") else "exact", jump="smooth",
+                             split_jump=False)
+    if df is None:
+        return prepared.smooth, prepared.derivative
+    return prepared.smooth, (lambda z: float(np.asarray(df(z))))
 
 
 def largest_lyapunov_exponent(f1: Callable, f2: Callable, forcing: Callable, x0: float, v0: float, *,
-                              gain: float = 1.0, t_transient: float = 100.0, t_total: float = 2000.0,
-                              renorm_every: float = 1.0, rtol: float = 1e-9, atol: float = 1e-11,
-                              df1: Callable | None = None, df2: Callable | None = None) -> float:
-    """Benettin's method with the variational (tangent) equations of ``x'' = g F - f1(x') - f2(x)``.
+                              gain: float = 1.0, offset: float = 0.0, t_transient: float = 100.0,
+                              t_total: float = 2000.0, renorm_every: float | None = None,
+                              rtol: float = 1e-9, atol: float = 1e-11, df1: Callable | None = None,
+                              df2: Callable | None = None, evaluation: str = "auto",
+                              method: str = "LSODA") -> float:
+    """Benettin's method with the variational (tangent) equations of ``x'' = g F - f1(x') - f2(x) - b``.
 
-    The tangent vector (dx, dv) obeys dx' = dv, dv' = -f1'(x') dv - f2'(x) dx; it is
-    renormalised every ``renorm_every`` time units and the mean log growth rate over
-    ``t_total`` (after a transient) is the largest exponent. Curve derivatives default to
-    central differences, so any callable curve (a truth, a fitted network) works.
+    Parameters
+    ----------
+    f1, f2 : callable or FittedCurve
+        The curves: a truth's (vectorised callables) or a fitted model's
+        (``model.curves["f1"]``, ``model.curves["f2"]``, with ``gain=model.gain`` and
+        ``offset=model.offset``).
+    forcing : callable
+        ``F(t)`` (scalar calls).
+    x0, v0 : float
+        Initial state (a transient of ``t_transient`` is discarded).
+    renorm_every : float, optional
+        Renormalise the tangent vector every this many time units (Benettin's scheme); by
+        default it is renormalised whenever its norm leaves [1e-3, 1e3]. The tangent equations
+        are linear, so both give the same exponent; the default restarts the solver far less.
+    df1, df2 : callable, optional
+        Curve derivatives; default: analytic for fitted curves (spline table / sympy),
+        central differences for plain callables.
+    evaluation : {"auto", "exact", "tabulated"}
+        How fitted curves are evaluated (see :func:`charcurves.simulate.simulate_model`).
+
+    Returns
+    -------
+    float
+        The largest exponent: the mean log growth rate of the tangent vector (dx, dv), which
+        obeys dx' = dv, dv' = -f1'(x') dv - f2'(x) dx, over ``t_total`` after the transient.
+
+    Notes
+    -----
+    The tangent dynamics need differentiable curves: a model whose friction has a jump at
+    zero velocity (dry friction) has no Lyapunov exponent in this sense.
     """
     from scipy.integrate import solve_ivp
 
-    df1 = df1 or _derivative(f1)
-    df2 = df2 or _derivative(f2)
+    f1s, d1 = _scalar_curve(f1, df1, evaluation)
+    f2s, d2 = _scalar_curve(f2, df2, evaluation)
+    g, b = float(gain), float(offset)
 
     def state_rhs(t, y):
-        return [y[1], gain * forcing(t) - float(np.asarray(f1(y[1]))) - float(np.asarray(f2(y[0])))]
+        x, v = y.tolist()
+        return [v, g * float(forcing(t)) - f1s(v) - f2s(x) - b]
 
     def full_rhs(t, y):
-        x, v, dx, dv = y
-        a = gain * forcing(t) - float(np.asarray(f1(v))) - float(np.asarray(f2(x)))
-        return [v, a, dv, -float(np.asarray(df1(v))) * dv - float(np.asarray(df2(x))) * dx]
+        x, v, dx, dv = y.tolist()
+        return [v, g * float(forcing(t)) - f1s(v) - f2s(x) - b, dv, -d1(v) * dv - d2(x) * dx]
 
     y = np.array([x0, v0], dtype=float)
     if t_transient > 0:
-        y = solve_ivp(state_rhs, (0.0, t_transient), y, method="LSODA", rtol=rtol, atol=atol).y[:, -1]
+        y = solve_ivp(state_rhs, (0.0, t_transient), y, method=method, rtol=rtol, atol=atol).y[:, -1]
+    from ..simulate._forward import _solver_class
+
+    solver_cls = _solver_class(method)
+    t, t_end = float(t_transient), float(t_transient + t_total)
     state = np.concatenate([y, [1.0, 0.0]])
-    t, total_log = t_transient, 0.0
-    n = int(round(t_total / renorm_every))
-    for _ in range(n):
-        sol = solve_ivp(full_rhs, (t, t + renorm_every), state, method="LSODA", rtol=rtol, atol=atol)
-        state = sol.y[:, -1]
+    total_log = 0.0
+    while t < t_end:
+        # one solver run until the tangent needs renormalising (or the next fixed renormalisation)
+        bound = t_end if renorm_every is None else min(t + float(renorm_every), t_end)
+        solver = solver_cls(full_rhs, t, state, bound, rtol=rtol, atol=atol)
+        while solver.status == "running":
+            message = solver.step()
+            if solver.status == "failed":
+                raise SimulationError(f"the Lyapunov integration failed at t = {solver.t:.4g}: {message}")
+            norm = float(np.hypot(solver.y[2], solver.y[3]))
+            if renorm_every is None and not (1e-3 <= norm <= 1e3):
+                break
+        state = solver.y.copy()
         norm = float(np.hypot(state[2], state[3]))
+        if not (np.isfinite(norm) and norm > 0):
+            raise SimulationError(f"the tangent vector became {norm} at t = {solver.t:.4g}; the model has no "
+                                  "finite Lyapunov exponent from this state")
         total_log += np.log(norm)
         state[2:] /= norm
-        t += renorm_every
-    return total_log / (n * renorm_every)
+        t = float(solver.t)
+    return total_log / float(t_total)

@@ -10,13 +10,18 @@ __all__ = ["plot_curves"]
 
 
 def plot_curves(model, truth: dict[str, Callable] | None = None, *, axes=None, n: int = 1000,
-                margin: float = 0.15, label: str | None = None, title: str | None = None):
+                margin: float = 0.15, label: str | None = None, title: str | None = None, bands: dict | None = None):
     """Plot each identified curve with its training range shaded (the paper's Fig. 3).
 
     The curves are drawn a little beyond the training range (``margin``, as a fraction of it) so
     that extrapolation is visible; the shaded band marks where data constrained the curve.
-    ``truth`` (name -> callable) is overlaid dashed when known. Returns the figure.
+    ``truth`` (name -> callable) is overlaid dashed when known. ``bands`` (name -> dict with
+    ``z``, ``lo``, ``hi``, ``level``, as :func:`charcurves.selection.curve_bands` returns; default:
+    the model's own ``bands`` when it has them) are drawn as a filled uncertainty band.
+    Returns the figure.
     """
+    if bands is None:
+        bands = getattr(model, "bands", None) or {}
     if axes is None:
         import matplotlib.pyplot as plt
 
@@ -30,6 +35,10 @@ def plot_curves(model, truth: dict[str, Callable] | None = None, *, axes=None, n
         pad = margin * (hi - lo)
         z = np.linspace(lo - pad, hi + pad, n)
         ax.axvspan(lo, hi, color="0.92", zorder=0, label="training range")
+        if name in bands:
+            b = bands[name]
+            ax.fill_between(b["z"], b["lo"], b["hi"], color="C0", alpha=0.25, lw=0, zorder=1,
+                            label=f"{b.get('level', 0.95):.0%} band ({b.get('members', '?')} {b.get('kind', 'members')})")
         ax.plot(z, curve(z), color="C0", lw=2, label=label or model.method)
         if truth and name in truth:
             ax.plot(z, truth[name](z), "k--", lw=1.2, label="truth")

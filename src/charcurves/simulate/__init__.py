@@ -1,5 +1,13 @@
 """Forward simulation of fitted models and of benchmark systems, with failure statuses."""
 
+from ._curve_eval import PreparedCurve as PreparedCurve
+from ._curve_eval import prepare_curve as prepare_curve
+from ._forward import STATUSES as STATUSES
 from ._forward import SimulationResult as SimulationResult
+from ._forward import prepare_model_curves as prepare_model_curves
 from ._forward import simulate_model as simulate_model
 from ._forward import sinusoidal_forcing as sinusoidal_forcing
+from ._sampled import HOLDS as HOLDS
+from ._sampled import rk4_sampled as rk4_sampled
+from ._sampled import simulate_sampled as simulate_sampled
+from ._sampled import stage_inputs as stage_inputs

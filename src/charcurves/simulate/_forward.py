@@ -3,25 +3,45 @@
 A learned model can blow up, leave the region where its curves were trained, or become so
 stiff that the solver crawls. Each of these ends the run with a status instead of a hang:
 "ok", "left_box" (the state left the allowed box), "diverged" (non-finite or huge state),
-"timeout" (the wall-clock budget ran out) or "solver_failed".
+"timeout" (the wall-clock budget ran out) or "solver_failed" (the solver gave up, or the
+stick-slip event loop exceeded its number of switches).
+
+The solver is driven step by step (scipy's ``OdeSolver`` classes), so every accepted step is
+checked against the state bounds and the time budget, and the samples computed before a
+failure are kept. A velocity curve with a jump at 0 (dry friction) is integrated with events:
+slip phases with a fixed friction direction, sticking phases with ``x' = 0`` while the net
+force stays within the friction limit (see ``docs/simulation.md``).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["SimulationResult", "simulate_model", "sinusoidal_forcing", "STATUSES"]
+from .._errors import ConfigError
+from ._curve_eval import PreparedCurve, prepare_curve
+
+__all__ = ["SimulationResult", "simulate_model", "sinusoidal_forcing", "prepare_model_curves", "STATUSES"]
 
 STATUSES = ("ok", "left_box", "diverged", "timeout", "solver_failed")
+
+_SOLVERS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
 
 
 @dataclasses.dataclass
 class SimulationResult:
-    """Samples of a forward simulation; after a failure they stop at ``t_end_reached``."""
+    """Samples of a forward simulation.
+
+    After "left_box", "diverged" or "solver_failed" the samples stop before ``t_end_reached``;
+    after "timeout" there are none (a run cut short by the clock says nothing about the model).
+    ``switches`` counts stick/slip transitions (0 without a jump); ``details`` records how the
+    curves were evaluated (``"f1"``/``"f2"``: "exact" or "tabulated"), the jump height used for
+    events and the time spent sticking.
+    """
 
     t: np.ndarray
     x: np.ndarray
@@ -30,6 +50,8 @@ class SimulationResult:
     message: str = ""
     t_end_reached: float = float("nan")
     seconds: float = 0.0
+    switches: int = 0
+    details: dict = dataclasses.field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -43,81 +65,331 @@ class _Stop(Exception):
 
 
 def sinusoidal_forcing(A: float, Omega: float) -> Callable[[float], float]:
-    """F(t) = A cos(Ω t)."""
+    """F(t) = A cos(Ω t) (vectorised)."""
     return lambda t: A * np.cos(Omega * t)
 
 
-def _scalar(curve) -> Callable[[float], float]:
-    fn = curve.numpy_function() if hasattr(curve, "numpy_function") else curve
-    shift = getattr(curve, "shift", 0.0) if hasattr(curve, "numpy_function") else 0.0
+def _solver_class(method):
+    import scipy.integrate as si
 
-    def f(z: float) -> float:
-        return float(np.asarray(fn(np.array([z]))).reshape(-1)[0]) + shift
+    cls = getattr(si, method, None) if isinstance(method, str) and method in _SOLVERS else method
+    if not (isinstance(cls, type) and issubclass(cls, si.OdeSolver)):
+        raise ConfigError(f"unknown solver method {method!r}; choose one of {', '.join(_SOLVERS)}")
+    return cls
 
-    return f
 
+def prepare_model_curves(model, *, evaluation: str = "auto", jump: str = "auto",
+                         **options) -> tuple[PreparedCurve, PreparedCurve]:
+    """The model's f1 (velocity curve, jump split off when present) and f2, ready for scalar use.
 
-def simulate_model(model, t_eval, x0: float, v0: float, forcing: Callable[[float], float], *,
-                   method: str = "LSODA", rtol: float = 1e-8, atol: float = 1e-10,
-                   time_budget: float = 60.0, box: dict | None = None, max_abs: float = 1e6) -> SimulationResult:
-    """Integrate ``x'' = g F(t) - f1(x') - f2(x) - b`` of a fitted model (or any object with
-    ``curves``, ``gain``, ``offset``) from ``(x0, v0)``.
-
-    ``box`` (``{"x": (lo, hi), "v": (lo, hi)}``) ends the run with status "left_box" when the
-    state leaves it (e.g. the curves' training ranges, where a learned model has no support).
+    ``options`` go to :func:`charcurves.simulate.prepare_curve` (e.g. ``table_rtol``, ``margin``).
     """
-    from scipy.integrate import solve_ivp
+    f1 = prepare_curve(model.curves["f1"], evaluation=evaluation, jump=jump, **options)
+    f2 = prepare_curve(model.curves["f2"], evaluation=evaluation, jump="smooth", split_jump=False, **options)
+    return f1, f2
 
-    t_eval = np.asarray(t_eval, dtype=float)
-    f1 = _scalar(model.curves["f1"])
-    f2 = _scalar(model.curves["f2"])
-    g, b = float(model.gain), float(model.offset)
-    deadline = time.monotonic() + float(time_budget)
-    xb = box.get("x") if box else None
-    vb = box.get("v") if box else None
-    last_t = [float(t_eval[0])]
 
-    def rhs(t, y):
-        x, v = float(y[0]), float(y[1])
-        last_t[0] = t
-        if not (np.isfinite(x) and np.isfinite(v)) or abs(x) > max_abs or abs(v) > max_abs:
-            raise _Stop("diverged", f"the state became non-finite or larger than {max_abs:g} at t = {t:.4g}", t)
+class _Output:
+    """The requested samples, filled in time order as the run proceeds."""
+
+    def __init__(self, t_eval: np.ndarray):
+        self.t = t_eval
+        self.x = np.full(t_eval.size, np.nan)
+        self.v = np.full(t_eval.size, np.nan)
+        self.filled = 0
+
+    def _upto(self, t: float) -> int:
+        return int(np.searchsorted(self.t, t, side="right"))
+
+    def dense(self, interp, t: float) -> None:
+        end = self._upto(t)
+        if end > self.filled:
+            y = interp(self.t[self.filled:end])
+            self.x[self.filled:end], self.v[self.filled:end] = y[0], y[1]
+            self.filled = end
+
+    def constant(self, x: float, t: float) -> None:
+        end = self._upto(t)
+        if end > self.filled:
+            self.x[self.filled:end], self.v[self.filled:end] = x, 0.0
+            self.filled = end
+
+
+class _Run:
+    """One simulation: the right-hand sides, the checks and the stick/slip loop."""
+
+    def __init__(self, f1: PreparedCurve, f2: PreparedCurve, g: float, b: float, forcing, t_eval, solver,
+                 rtol, atol, time_budget, box, max_abs, max_events, stick_step):
+        self.f1, self.f2, self.g, self.b, self.forcing = f1, f2, g, b, forcing
+        self.out = _Output(t_eval)
+        self.t_final = float(t_eval[-1])
+        self.solver, self.rtol, self.atol = solver, rtol, atol
+        self.time_budget = float(time_budget)
+        self.deadline = time.monotonic() + self.time_budget
+        self.xb = box.get("x") if box else None
+        self.vb = box.get("v") if box else None
+        self.max_abs = float(max_abs)
+        self.max_events = int(max_events)
+        self.switches = 0
+        self.stick_seconds = 0.0
+        self.mu = float(f1.jump_height)
+        if stick_step is None:
+            spacing = float(np.min(np.diff(t_eval))) if t_eval.size > 1 else self.t_final - float(t_eval[0])
+            stick_step = 0.25 * spacing if spacing > 0 else 1e-3
+        self.stick_step = float(stick_step)
+        self._vector_forcing = None
+
+    # ---------------------------------------------------------------- checks
+    def check_time(self, t: float) -> None:
+        if time.monotonic() > self.deadline:
+            raise _Stop("timeout", f"the time budget of {self.time_budget:g} s ran out at t = {t:.4g}", t)
+
+    def check_state(self, t: float, x: float, v: float) -> None:
+        m = self.max_abs
+        if not (-m <= x <= m and -m <= v <= m):  # NaN fails every comparison
+            raise _Stop("diverged", f"the state became non-finite or larger than {m:g} at t = {t:.4g}", t)
+        xb, vb = self.xb, self.vb
         if xb is not None and not (xb[0] <= x <= xb[1]):
             raise _Stop("left_box", f"x = {x:.4g} left [{xb[0]:.4g}, {xb[1]:.4g}] at t = {t:.4g}", t)
         if vb is not None and not (vb[0] <= v <= vb[1]):
             raise _Stop("left_box", f"x' = {v:.4g} left [{vb[0]:.4g}, {vb[1]:.4g}] at t = {t:.4g}", t)
-        if time.monotonic() > deadline:
-            raise _Stop("timeout", f"the time budget of {time_budget:g} s ran out at t = {t:.4g}", t)
-        return [v, g * forcing(t) - f1(v) - f2(x) - b]
 
+    def count_switch(self, t: float) -> None:
+        self.switches += 1
+        if self.switches > self.max_events:
+            raise _Stop("solver_failed", f"more than {self.max_events} stick/slip switches before t = {t:.4g}; "
+                        "the model chatters at zero velocity (raise max_events or check the friction curve)", t)
+
+    # ---------------------------------------------------------------- forces
+    def net_force_at_rest(self, t, x: float):
+        """g F(t) - f2(x) - b - f1_smooth(0): what friction must hold for the mass to stay at rest."""
+        return self.g * self._force(t) - self.f2.smooth(x) - self.b - self.f1.smooth(0.0)
+
+    def _force(self, t):
+        if np.ndim(t) == 0:
+            return float(self.forcing(float(t)))
+        if self._vector_forcing is None:
+            try:
+                probe = np.asarray(self.forcing(t), dtype=float)
+                self._vector_forcing = probe.shape == np.shape(t)
+            except Exception:  # a scalar-only callable (math.cos...)
+                self._vector_forcing = False
+        if self._vector_forcing:
+            return np.asarray(self.forcing(t), dtype=float)
+        return np.array([float(self.forcing(float(ti))) for ti in t])
+
+    def rhs(self, direction: int):
+        """Right-hand side; ``direction`` (+1/-1) fixes the sign of the jump term during a slip."""
+        f1, f2, g, b, forcing = self.f1.smooth, self.f2.smooth, self.g, self.b, self.forcing
+        jump = self.mu * direction
+        m, run = self.max_abs, self
+        clock = time.monotonic
+        deadline = self.deadline
+
+        def fun(t, y):
+            x, v = y.tolist()
+            if not (-m <= x <= m and -m <= v <= m):
+                run.check_state(t, x, v)
+            if clock() > deadline:
+                run.check_time(t)
+            return [v, g * forcing(t) - f1(v) - jump - f2(x) - b]
+
+        return fun
+
+    # ---------------------------------------------------------------- phases
+    def slip(self, t0: float, x0: float, v0: float, direction: int):
+        """Integrate until the end or, with a jump, until x' returns to 0 against ``direction``.
+
+        Returns ("end" | "stopped" | "nowhere", t, x).
+        """
+        from scipy.optimize import brentq
+
+        solver = self.solver(self.rhs(direction), t0, np.array([x0, v0], dtype=float), self.t_final,
+                             rtol=self.rtol, atol=self.atol)
+        s = direction
+        while True:
+            t_old, v_old = solver.t, float(solver.y[1])
+            message = solver.step()
+            if solver.status == "failed":
+                raise _Stop("solver_failed", f"the solver failed at t = {solver.t:.4g}: {message}", solver.t)
+            t_new = solver.t
+            x_new, v_new = (float(u) for u in solver.y)
+            self.check_state(t_new, x_new, v_new)
+            interp = solver.dense_output()
+            if s != 0 and s * v_new <= 0.0:
+                t_lo = t_old if s * v_old > 0.0 else None
+                if t_lo is None:  # the phase began at rest: find where the motion went the right way
+                    for tt in np.linspace(t_old, t_new, 10)[1:-1]:
+                        if s * float(interp(tt)[1]) > 0.0:
+                            t_lo = float(tt)
+                            break
+                if t_lo is None:
+                    return "nowhere", t_old, float(interp(t_old)[0])
+                t_hit = t_new if v_new == 0.0 else brentq(lambda tt: float(interp(tt)[1]), t_lo, t_new,
+                                                          xtol=1e-14, rtol=4 * np.finfo(float).eps)
+                self.out.dense(interp, t_hit)
+                return "stopped", t_hit, float(interp(t_hit)[0])
+            self.out.dense(interp, t_new)
+            if solver.status == "finished":
+                return "end", t_new, x_new
+            self.check_time(t_new)
+
+    def stick(self, t_s: float, x_s: float):
+        """Stay at rest from ``t_s`` until |net force| exceeds the jump height.
+
+        Returns (t_breakaway, direction) or None when the mass sticks to the end.
+        """
+        from scipy.optimize import brentq
+
+        mu, step = self.mu, self.stick_step
+        base = self.f2.smooth(x_s) + self.b + self.f1.smooth(0.0)
+        r = lambda tt: self.g * self._force(tt) - base  # noqa: E731
+        clock0 = time.perf_counter()
+        t_a = t_s
+        while t_a < self.t_final:
+            self.check_time(t_a)
+            grid = np.minimum(t_a + step * np.arange(1, 513), self.t_final)
+            values = r(grid)
+            over = np.abs(values) > mu
+            if over.any():
+                i = int(np.argmax(over))
+                t_hi = float(grid[i])
+                t_lo = float(grid[i - 1]) if i else t_a
+                s = 1 if values[i] > 0 else -1
+                excess = lambda tt, s=s: s * float(r(tt)) - mu  # noqa: E731
+                t_b = t_lo if excess(t_lo) >= 0.0 else brentq(excess, t_lo, t_hi, xtol=1e-14,
+                                                                  rtol=4 * np.finfo(float).eps)
+                # step just past the rounded root: the slip must start with a strict push
+                nudge = 4.0 * math.ulp(max(abs(t_b), 1.0))
+                while excess(t_b) <= 0.0 and t_b < t_hi:
+                    t_b = min(t_b + nudge, t_hi)
+                    nudge *= 2.0
+                self.out.constant(x_s, t_b)
+                self.stick_seconds += time.perf_counter() - clock0
+                return t_b, s
+            self.out.constant(x_s, float(grid[-1]))
+            t_a = float(grid[-1])
+        self.stick_seconds += time.perf_counter() - clock0
+        return None
+
+    def direction_at_rest(self, t: float, x: float) -> int:
+        r = self.net_force_at_rest(t, x)
+        return 0 if abs(r) <= self.mu else (1 if r > 0 else -1)
+
+    def run(self, t0: float, x0: float, v0: float) -> None:
+        self.check_state(t0, x0, v0)
+        if t0 >= self.t_final:  # a single sample: the initial state
+            self.out.x[0], self.out.v[0], self.out.filled = x0, v0, 1
+            return
+        if self.mu == 0.0:
+            self.slip(t0, x0, v0, 0)
+            return
+        t, x = t0, x0
+        mode = (1 if v0 > 0 else -1) if v0 != 0.0 else self.direction_at_rest(t, x)
+        v = v0
+        while True:
+            if mode == 0:
+                exit_ = self.stick(t, x)
+                if exit_ is None:
+                    return
+                t, mode = exit_
+                v = 0.0
+                self.count_switch(t)
+                continue
+            kind, t_end, x_end = self.slip(t, x, v, mode)
+            if kind == "end":
+                return
+            if kind == "nowhere":  # a grazing breakaway: stay at rest and look for the next one
+                t, x, mode = t_end, x_end, 0
+                self.count_switch(t)
+                continue
+            t, x, v = t_end, x_end, 0.0
+            mode = self.direction_at_rest(t, x)
+            self.count_switch(t)
+
+
+def simulate_model(model, t_eval, x0: float, v0: float, forcing: Callable[[float], float], *,
+                   method: str = "LSODA", rtol: float = 1e-8, atol: float = 1e-10,
+                   time_budget: float = 60.0, box: dict | None = None, max_abs: float = 1e6,
+                   evaluation: str = "auto", jump: str = "auto", max_events: int = 10_000,
+                   stick_step: float | None = None, table_rtol: float = 1e-7) -> SimulationResult:
+    """Integrate ``x'' = g F(t) - f1(x') - f2(x) - b`` of a fitted model from ``(x0, v0)``.
+
+    Parameters
+    ----------
+    model : FittedModel
+        Or any object with ``curves`` (``"f1"``, ``"f2"``), ``gain`` and ``offset``.
+    t_eval : array_like
+        Increasing sample times; the run starts at ``t_eval[0]``.
+    x0, v0 : float
+        Initial state.
+    forcing : callable
+        ``F(t)``; scalar calls during slip, vectorised calls (when it accepts arrays) while sticking.
+    method : str
+        A scipy ``OdeSolver``: "LSODA" (default), "RK45", "DOP853", "Radau", "BDF", "RK23".
+    rtol, atol : float
+        Solver tolerances.
+    time_budget : float
+        Wall-clock seconds for the whole run (status "timeout" beyond; checked at every
+        right-hand-side call, every step and every sticking scan).
+    box : dict, optional
+        ``{"x": (lo, hi), "v": (lo, hi)}``: status "left_box" when an accepted step leaves it
+        (e.g. the curves' training ranges, where a learned model has no support).
+    max_abs : float
+        Status "diverged" when |x| or |x'| exceeds it or becomes non-finite.
+    evaluation : {"auto", "exact", "tabulated"}
+        How curves are evaluated: "auto" tabulates network curves (a checked cubic spline, see
+        :func:`charcurves.simulate.prepare_curve`) and evaluates closed forms exactly.
+    jump : {"auto", "events", "smooth"}
+        Dry friction in f1: "auto" integrates a sharp jump at zero velocity (a network's jump
+        term or a symbolic ``c*tanh(k*v)``/``c*sign(v)`` with a width below 1e-3 of the velocity
+        range) with stick/slip events; "events" does so for any jump term; "smooth" integrates
+        the curve as it is.
+    max_events : int
+        Most stick/slip switches (status "solver_failed" beyond).
+    stick_step : float, optional
+        Time step at which a sticking phase scans the net force for the breakaway (refined by
+        root finding); default a quarter of the output spacing.
+    table_rtol : float
+        Largest relative error a curve table may add (else the curve is evaluated exactly).
+
+    Returns
+    -------
+    SimulationResult
+
+    Raises
+    ------
+    ConfigError
+        For an unknown ``method``, ``evaluation`` or ``jump``, or unusable ``t_eval``.
+    """
+    if getattr(getattr(model, "template", None), "is_general", False):  # first-order, position-damping, two-dof...
+        from ._families import simulate_template_model
+        return simulate_template_model(model, t_eval, x0, v0, forcing, method=method, rtol=rtol, atol=atol,
+                                       time_budget=time_budget, max_abs=max_abs)
+    t_eval = np.asarray(t_eval, dtype=float).reshape(-1)
+    if t_eval.size < 1 or not np.all(np.isfinite(t_eval)) or np.any(np.diff(t_eval) <= 0):
+        raise ConfigError("t_eval must be finite, strictly increasing sample times; pass e.g. np.linspace(0, 80, 2001)")
+    if int(max_events) < 1:
+        raise ConfigError(f"max_events must be a positive integer, got {max_events!r}")
+    if stick_step is not None and not (np.isfinite(stick_step) and stick_step > 0):
+        raise ConfigError(f"stick_step must be a positive time step, got {stick_step!r}")
+    solver = _solver_class(method)
     t0 = time.perf_counter()
+    f1, f2 = prepare_model_curves(model, evaluation=evaluation, jump=jump, table_rtol=table_rtol)
+    run = _Run(f1, f2, float(model.gain), float(model.offset), forcing, t_eval, solver, float(rtol), float(atol),
+               time_budget, box, max_abs, max_events, stick_step)
+    details = {"f1": f1.evaluation, "f2": f2.evaluation, "jump_height": f1.jump_height,
+               "events": f1.jump_height != 0.0, "prepare_seconds": time.perf_counter() - t0}
+    status, message, t_end = "ok", "", float(t_eval[-1])
     try:
-        sol = solve_ivp(rhs, (t_eval[0], t_eval[-1]), [float(x0), float(v0)], method=method, t_eval=t_eval,
-                        rtol=rtol, atol=atol)
+        run.run(float(t_eval[0]), float(x0), float(v0))
     except _Stop as stop:
-        return _partial(model, t_eval, x0, v0, forcing, stop, method, rtol, atol, time.perf_counter() - t0)
+        status, message, t_end = stop.status, stop.message, float(stop.t)
+    details["stick_seconds"] = run.stick_seconds
     seconds = time.perf_counter() - t0
-    if not sol.success:
-        n = sol.t.size
-        return SimulationResult(t_eval[:n], sol.y[0], sol.y[1], "solver_failed", sol.message,
-                                float(sol.t[-1]) if n else float(t_eval[0]), seconds)
-    return SimulationResult(t_eval, sol.y[0], sol.y[1], "ok", "", float(t_eval[-1]), seconds)
-
-
-def _partial(model, t_eval, x0, v0, forcing, stop, method, rtol, atol, seconds):
-    """After a stop, the samples up to the failure time (re-integrated to that time; bounded)."""
-    from scipy.integrate import solve_ivp
-
-    keep = t_eval < stop.t
-    if keep.sum() < 2 or stop.status == "timeout":
-        n = int(keep.sum()) if stop.status != "timeout" else 0
-        return SimulationResult(t_eval[:n], np.full(n, np.nan), np.full(n, np.nan), stop.status, stop.message,
-                                stop.t, seconds)
-    f1 = _scalar(model.curves["f1"])
-    f2 = _scalar(model.curves["f2"])
-    g, b = float(model.gain), float(model.offset)
-    te = t_eval[keep]
-    sol = solve_ivp(lambda t, y: [y[1], g * forcing(t) - f1(y[1]) - f2(y[0]) - b], (te[0], te[-1]),
-                    [float(x0), float(v0)], method=method, t_eval=te, rtol=rtol, atol=atol)
-    n = sol.t.size
-    return SimulationResult(te[:n], sol.y[0], sol.y[1], stop.status, stop.message, stop.t, seconds)
+    n = run.out.filled if status != "timeout" else 0
+    if status == "ok" and n < t_eval.size:  # cannot happen unless the solver stopped short silently
+        status, message = "solver_failed", "the solver stopped before the last sample"
+        t_end = float(t_eval[max(n - 1, 0)])
+    return SimulationResult(t_eval[:n], run.out.x[:n], run.out.v[:n], status, message, t_end, seconds,
+                            run.switches, details)

@@ -32,6 +32,7 @@ import numpy as np
 
 from .._errors import ConfigError
 from ..curves._fitted import FittedCurve, SymbolicFittedCurve
+from ..curves._neural import jump_log_eps
 from ..templates._separable import apply_gauge, sticking_mask
 from ._engine import (
     POLY_OPERATORS,
@@ -141,7 +142,7 @@ def _neural_jump(curve: FittedCurve, z: np.ndarray):
         return None
     sl = spec.slices()
     mu_m = curve.theta[:, sl["jump_height"]].reshape(-1) * curve.out_scale
-    eps_m = np.exp(curve.theta[:, sl["jump_log_eps"]].reshape(-1)) * curve.in_scale
+    eps_m = np.exp(jump_log_eps(curve.theta[:, sl["jump_log_eps"]].reshape(-1))) * curve.in_scale
     with np.errstate(over="ignore", divide="ignore"):
         vals = np.mean(mu_m[:, None] * np.tanh(z[None, :] / eps_m[:, None]), axis=0)
     # k = 1/eps, lowered to where the step is still saturated (|k z| >= 20) at every grid point:

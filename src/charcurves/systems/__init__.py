@@ -1,4 +1,5 @@
-"""Benchmark systems ``x'' + f1(x') + f2(x) = A cos(Ω t)``: Duffing and stick-slip.
+"""Benchmark systems ``x'' + f1(x') + f2(x) = A cos(Ω t)``: Duffing and stick-slip; and one system
+per other family: van-der-pol (position-damping), first-order, two-dof (see ``system.family``).
 
 Examples
 --------
@@ -17,11 +18,18 @@ from ._base import BenchmarkSystem
 from ._duffing import Duffing
 from ._stick_slip import StickSlip
 
-__all__ = ["BenchmarkSystem", "Duffing", "StickSlip", "get_system", "SYSTEM_NAMES"]
+__all__ = ["BenchmarkSystem", "Duffing", "StickSlip", "VanDerPolDamping", "FirstOrderSystem", "TwoDOF",
+           "corrupt_forces", "get_system", "SYSTEM_NAMES", "ALL_SYSTEM_NAMES"]
 
-_REGISTRY: dict[str, type[BenchmarkSystem]] = {"duffing": Duffing, "stick-slip": StickSlip}
-#: Names accepted by :func:`get_system` ("stick_slip" is accepted as an alias of "stick-slip").
-SYSTEM_NAMES = tuple(_REGISTRY)
+from ._families import FirstOrderSystem, TwoDOF, VanDerPolDamping, corrupt_forces  # noqa: E402
+
+_REGISTRY: dict[str, type] = {"duffing": Duffing, "stick-slip": StickSlip, "van-der-pol": VanDerPolDamping,
+                              "first-order": FirstOrderSystem, "two-dof": TwoDOF}
+#: The paper's separable benchmarks ("stick_slip" is accepted as an alias of "stick-slip").
+SYSTEM_NAMES = ("duffing", "stick-slip")
+#: Every name accepted by :func:`get_system`: the separable benchmarks and one system per other
+#: family (van-der-pol: position-damping, first-order, two-dof).
+ALL_SYSTEM_NAMES = tuple(_REGISTRY)
 
 
 def get_system(name: str, variant: str = "paper", **overrides: Any) -> BenchmarkSystem:
@@ -29,7 +37,7 @@ def get_system(name: str, variant: str = "paper", **overrides: Any) -> Benchmark
 
     Parameters
     ----------
-    name : {"duffing", "stick-slip"}
+    name : {"duffing", "stick-slip", "van-der-pol", "first-order", "two-dof"}
         System name (``"stick_slip"`` and any letter case are accepted too).
     variant : str
         Named parameter set: ``"paper"`` or ``"scripts"`` (both systems), ``"smooth"``
@@ -49,7 +57,7 @@ def get_system(name: str, variant: str = "paper", **overrides: Any) -> Benchmark
     key = str(name).strip().lower().replace("_", "-") if isinstance(name, str) else name
     cls = _REGISTRY.get(key) if isinstance(key, str) else None
     if cls is None:
-        raise ConfigError(f"unknown system {name!r}; choose one of {', '.join(map(repr, SYSTEM_NAMES))}")
+        raise ConfigError(f"unknown system {name!r}; choose one of {', '.join(map(repr, ALL_SYSTEM_NAMES))}")
     fields = [f for f in cls.__dataclass_fields__ if f != "variant"]
     unknown = sorted(set(overrides) - set(fields))
     if unknown:

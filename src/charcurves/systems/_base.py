@@ -54,6 +54,8 @@ class BenchmarkSystem(abc.ABC):
 
     #: Registry name, also the name of the simulated trajectories.
     name: ClassVar[str] = "system"
+    #: The template family whose equation the system follows (CharacteristicCurves(family=...)).
+    family: ClassVar[str] = "separable"
     #: Variant name -> default field values (every field left ``None`` must be listed).
     VARIANTS: ClassVar[dict[str, dict[str, Any]]] = {}
     #: Fields reported by :meth:`parameters`, in order.

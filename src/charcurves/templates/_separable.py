@@ -11,7 +11,8 @@ from ..data._trajectory import Trajectory
 
 __all__ = ["SeparableTemplate", "get_template", "FAMILY_NAMES", "sticking_mask", "apply_gauge"]
 
-FAMILY_NAMES = ("separable",)
+#: Every built-in family ("custom" is a user-written equation, see EquationTemplate).
+FAMILY_NAMES = ("separable", "first-order", "position-damping", "two-dof")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,10 +83,30 @@ class SeparableTemplate:
                 "gain_on": self.gain_on}
 
 
-def get_template(family: str = "separable", **kwargs) -> SeparableTemplate:
-    if family != "separable":
-        raise ConfigError(f"unknown family {family!r}; available: {', '.join(FAMILY_NAMES)}")
-    return SeparableTemplate(**kwargs)
+def get_template(family: str = "separable", *, equation: str | None = None, **kwargs):
+    """The template of a family name, or of a user-written ``equation`` (family "custom").
+
+    ``gauge=None`` takes the family's default anchors (separable: f2(0) = 0).
+    """
+    from ._general import FAMILY_EQUATIONS, EquationTemplate
+
+    if family in FAMILY_EQUATIONS and equation is not None and " ".join(str(equation).split()) == \
+            " ".join(FAMILY_EQUATIONS[family].split()):
+        equation = None  # a saved family template names its own equation
+    if equation is not None and str(equation).strip():
+        if family not in ("separable", "custom", None, ""):
+            raise ConfigError(f"give either a family ({family!r}) or an equation, not both")
+        return EquationTemplate(str(equation), family="custom", **kwargs)
+    if family == "separable":
+        if kwargs.get("gauge") is None:
+            kwargs.pop("gauge", None)
+        return SeparableTemplate(**kwargs)
+    if family in FAMILY_EQUATIONS:
+        return EquationTemplate(FAMILY_EQUATIONS[family], family=family, **kwargs)
+    if family == "custom":
+        raise ConfigError("the custom family needs an equation, e.g. equation=\"x'' + a1*x' + f1(x) = F\"")
+    raise ConfigError(f"unknown family {family!r}; available: {', '.join(FAMILY_NAMES)} "
+                      "(or write your own with --equation)")
 
 
 def sticking_mask(traj: Trajectory, *, rel_tol: float | None = None, min_run: int = 3) -> np.ndarray:
@@ -95,6 +116,8 @@ def sticking_mask(traj: Trajectory, *, rel_tol: float | None = None, min_run: in
     bound f1 and must not be fitted as points of the curve. ``rel_tol`` is the threshold on
     |x'| relative to max|x'|: exact zeros (1e-12) for given derivatives, 1 % for estimated ones.
     """
+    if getattr(traj, "v", None) is None:  # multi-DOF records: sticking is not detected (see docs/families.md)
+        return np.zeros(traj.n_samples, dtype=bool)
     v = np.asarray(traj.v)
     if rel_tol is None:
         rel_tol = 1e-12
@@ -119,6 +142,8 @@ def apply_gauge(raw_at_zero: dict[str, float], pinned: dict[str, bool], bias: fl
     can carry it (not pinned at 0 by exact odd symmetry); when none can, it stays as the
     equation's free constant ``b`` (offsets of real records) and is reported.
     """
+    if hasattr(anchor, "apply"):  # a general template's gauge (see templates._general)
+        return anchor.apply(raw_at_zero, pinned, bias, order)
     shifts = {name: 0.0 for name in order}
     total = float(bias)
     if not pinned[anchor]:

@@ -1,0 +1,21 @@
+"""Model selection (the paper's appendix B), symmetry detection and uncertainty bands."""
+
+from ._bands import ENSEMBLE_KINDS as ENSEMBLE_KINDS
+from ._bands import Ensemble as Ensemble
+from ._bands import attach_bands as attach_bands
+from ._bands import band_coverage as band_coverage
+from ._bands import bootstrap_records as bootstrap_records
+from ._bands import curve_bands as curve_bands
+from ._bands import fit_ensemble as fit_ensemble
+from ._symmetry import detect_symmetry as detect_symmetry
+from ._symmetry import parity_tests as parity_tests
+from ._bands import fit_ensembles as fit_ensembles
+from ._loops import LoopResult as LoopResult
+from ._loops import NoiseFloor as NoiseFloor
+from ._loops import SelectionReport as SelectionReport
+from ._loops import inner_loop as inner_loop
+from ._loops import middle_loop as middle_loop
+from ._loops import noise_floor as noise_floor
+from ._loops import outer_loop as outer_loop
+from ._loops import select_family as select_family
+from ._loops import split_record as split_record

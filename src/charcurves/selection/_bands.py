@@ -1,0 +1,246 @@
+"""Ensembles of fitted models and the uncertainty bands of their curves.
+
+An ensemble is a set of fits that differ only by what is random or uncertain in the
+identification: the training seed (``kind="seeds"``), or the noise realisation, drawn by a wild
+residual bootstrap around a first fit (``kind="bootstrap"``, the default). Bands are computed
+on a grid over each curve's training range from the spread of the members.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import numpy as np
+
+from .._errors import ConfigError
+
+__all__ = ["Ensemble", "fit_ensemble", "fit_ensembles", "band_coverage", "bootstrap_records", "curve_bands", "ENSEMBLE_KINDS", "attach_bands"]
+
+#: Ways to draw an ensemble: training seeds only, or a wild residual bootstrap (new seeds too).
+ENSEMBLE_KINDS = ("bootstrap", "seeds")
+#: Fewest members from which a spread (standard deviation) means anything.
+MIN_MEMBERS = 3
+
+
+@dataclasses.dataclass
+class Ensemble:
+    """A point fit and the members drawn around it.
+
+    Attributes
+    ----------
+    point : FittedModel
+        The fit of the record itself (what ``CharacteristicCurves.fit`` returns).
+    members : list of FittedModel
+        Refits on bootstrap records (or with other seeds); before any post-SR distillation.
+    record : Trajectory
+        The record with the derivatives the fits used.
+    kind : str
+    """
+
+    point: object
+    members: list
+    record: object
+    kind: str
+
+    def curve_values(self, name: str, z: np.ndarray) -> np.ndarray:
+        """Values of curve ``name`` of every member at ``z``, shape (members, len(z))."""
+        return np.stack([np.asarray(m.curves[name](z), dtype=float) for m in self.members])
+
+
+def _check_members(n: int) -> int:
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < MIN_MEMBERS:
+        raise ConfigError(f"an ensemble needs at least {MIN_MEMBERS} members to measure a spread, got {n!r}; "
+                          f"use e.g. --bands 8")
+    return int(n)
+
+
+def check_band_options(n, level: float) -> None:
+    """Refuse an ensemble size or band level that cannot work (ConfigError naming the fix)."""
+    _check_members(n)
+    if not isinstance(level, (int, float)) or not (0.0 < float(level) < 1.0):
+        raise ConfigError(f"band level must be between 0 and 1 (e.g. 0.95), got {level!r}")
+
+
+def bootstrap_records(record, model, n: int, *, random_state: int = 0) -> list:
+    """Wild residual bootstrap: records whose forcing is the fitted one plus sign-flipped residuals.
+
+    The state and its derivatives stay as they are (they define where the curves are sampled);
+    the forcing becomes ``F_hat + w * e`` with ``e = F - F_hat`` the model's residual in force
+    units and ``w = ±1`` at random per sample. Sign flips, rather than resampling residuals,
+    keep each sample's own residual size (heteroscedastic noise, sticking phases).
+    """
+    if not hasattr(model, "force_residual"):
+        raise ConfigError(f"a bootstrap needs the model's residual, which a {type(model).__name__} does not give; "
+                          "use kind='seeds'")
+    resid = np.asarray(model.force_residual(record), dtype=float) / float(model.gain)
+    if resid.ndim != 1 or not hasattr(record, "F"):
+        raise ConfigError("the residual bootstrap handles one-equation templates on one forcing column; "
+                          "use kind='seeds' for this template")
+    F = np.asarray(record.F, dtype=float)
+    f_hat = F + resid  # the residual is x'' + ... - g F, so F - F_hat = -resid / g
+    rng = np.random.default_rng(random_state)
+    out = []
+    for _ in range(n):
+        signs = rng.choice([-1.0, 1.0], size=F.size)
+        out.append(record.replace(F=f_hat - signs * resid))
+    return out
+
+
+def fit_ensemble(estimator, record, n: int = 8, *, kind: str = "bootstrap", random_state: int | None = None) -> Ensemble:
+    """Fit ``record`` with ``estimator`` and draw an ensemble of ``n`` refits around it.
+
+    Parameters
+    ----------
+    estimator : CharacteristicCurves
+        Its settings (family, method, symmetry...) are used for every fit; it is not modified.
+    record : Trajectory
+    n : int
+        Members (at least 3; 8 gives bands whose level is about right, see docs/selection.md).
+    kind : {"bootstrap", "seeds"}
+        "bootstrap": wild residual bootstrap of the forcing, each member with its own seed;
+        "seeds": the same record with other training seeds (optimisation spread only).
+    random_state : int, optional
+        Seeds the bootstrap and the members' training; default: the estimator's.
+
+    Returns
+    -------
+    Ensemble
+
+    Examples
+    --------
+    >>> from charcurves.fitting import CharacteristicCurves
+    >>> from charcurves.systems import get_system
+    >>> from charcurves.data import corrupt
+    >>> record = corrupt(get_system("duffing").simulate(), 20, seed=0)
+    >>> ens = fit_ensemble(CharacteristicCurves(method="poly-cc"), record, 4)
+    >>> len(ens.members)
+    4
+    """
+    return fit_ensembles(estimator, [record], n, kind=kind, random_state=random_state)[0]
+
+
+def fit_ensembles(estimator, records, n: int = 8, *, kind: str = "bootstrap",
+                  random_state: int | None = None, points: Sequence | None = None) -> list[Ensemble]:
+    """:func:`fit_ensemble` for several records, batched: all point fits in one training pass,
+    then all members in another (neural curves of equally long records train together).
+    Ctrl-C raises KeyboardInterrupt (no ensemble is made of interrupted refits).
+
+    ``points``: models already fitted on ``records`` by ``estimator`` (e.g. a long post-SR
+    fit), used as they are instead of fitting again.
+    """
+    n = _check_members(n)
+    if kind not in ENSEMBLE_KINDS:
+        raise ConfigError(f"unknown ensemble kind {kind!r}; choose one of {', '.join(ENSEMBLE_KINDS)}")
+    seed = int(estimator.random_state if random_state is None else random_state)
+    records = list(records)
+    point_seeds = [seed + 1000 * k for k in range(len(records))]
+    if points is not None:
+        points = list(points)
+        prepared = [_prepared(estimator, rec) for rec in records]
+        raw_points = points
+    else:
+        # point fits through the estimator's own path (post-SR included); members are raw refits
+        raw_points, prepared = estimator._fit_many_raw(records, point_seeds)
+        points = estimator.fit_many(records, seeds=point_seeds) if _post_sr(estimator) else raw_points
+    member_records, member_seeds = [], []
+    for k, (rec, raw) in enumerate(zip(prepared, raw_points)):
+        if kind == "seeds":
+            member_records += [rec] * n
+        else:
+            member_records += bootstrap_records(rec, raw, n, random_state=point_seeds[k] + 7919)
+        member_seeds += [point_seeds[k] + 1 + i for i in range(n)]
+    # one layout for every member (the jump decision of the first point fit)
+    members, _ = _member_estimator(estimator, raw_points[0])._fit_many_raw(member_records, member_seeds)
+    if any(m.info.get("interrupted") for m in [*raw_points, *members]):
+        # neural training answers Ctrl-C by returning its best weights so far; bands from
+        # half-trained refits would be wrong, so the interrupt goes on to the caller instead
+        raise KeyboardInterrupt
+    return [Ensemble(point=points[k], members=list(members[k * n:(k + 1) * n]), record=prepared[k], kind=kind)
+            for k in range(len(records))]
+
+
+def _prepared(estimator, record):
+    """The record with the derivatives the estimator's fit used (given ones, or estimated)."""
+    from ..data._differentiate import estimate_derivatives
+
+    method = estimator.derivatives
+    if method in ("auto", "given") and record.has_derivatives:
+        return record
+    return estimate_derivatives(record.replace(v=None, a=None), "auto" if method == "given" else method)
+
+
+def _post_sr(estimator) -> bool:
+    """Whether the estimator's models go beyond the raw fit (post-SR, output-error refinement)."""
+    from ..fitting._estimator import METHODS
+
+    refine = getattr(estimator, "refine", "none")
+    return bool(METHODS.get(estimator.method, {}).get("post_sr")) or refine not in (None, "none")
+
+
+def _member_estimator(estimator, point):
+    """The estimator for members: same settings, the point fit's jump decision, given derivatives."""
+    params = estimator.get_params()
+    if params.get("jump") == "auto":
+        # members keep the point fit's curve layout (a jump decided on the record, not per member)
+        jumps = [name for name, c in point.curves.items() if getattr(getattr(c, "spec", None), "jump", False)]
+        params["jump"] = jumps or "none"
+    params["derivatives"] = "auto"  # the prepared record carries the derivatives the point fit used
+    params["progress"] = None
+    if isinstance(params.get("symmetry"), str) and params["symmetry"].strip().lower() == "auto":
+        params["symmetry"] = None  # members of an auto fit are drawn by the caller with resolved priors
+    return type(estimator)(**params)
+
+
+def curve_bands(ensemble: Ensemble, *, level: float = 0.95, n_grid: int = 200) -> dict[str, dict]:
+    """Bands ``point ± z·sd`` of each curve over its training range.
+
+    ``sd`` is the members' standard deviation at each grid point and ``z`` the two-sided normal
+    quantile of ``level``; with few members a normal band is steadier than member quantiles.
+    Returns ``{name: {"z", "lo", "hi", "center", "sd", "level", "members", "kind"}}`` (lists).
+    """
+    if not (0.0 < float(level) < 1.0):
+        raise ConfigError(f"band level must be between 0 and 1 (e.g. 0.95), got {level!r}")
+    from statistics import NormalDist
+
+    zq = NormalDist().inv_cdf(0.5 + float(level) / 2.0)
+    out = {}
+    for name, curve in ensemble.point.curves.items():
+        lo_d, hi_d = curve.domain
+        z = np.linspace(lo_d, hi_d, int(n_grid))
+        center = np.asarray(curve(z), dtype=float)
+        values = ensemble.curve_values(name, z)
+        sd = values.std(axis=0, ddof=1)
+        out[name] = {
+            "argument": curve.argument,
+            "z": z.tolist(),
+            "lo": (center - zq * sd).tolist(),
+            "hi": (center + zq * sd).tolist(),
+            "center": center.tolist(),
+            "sd": sd.tolist(),
+            "level": float(level),
+            "members": len(ensemble.members),
+            "kind": ensemble.kind,
+        }
+    return out
+
+
+def attach_bands(model, bands: dict) -> None:
+    """Keep ``bands`` with the model: ``result_dict`` writes them and ``plot_curves`` draws them."""
+    model.bands = bands
+
+
+def band_coverage(bands: dict, truth: dict, *, names: Sequence[str] | None = None) -> dict[str, float]:
+    """Fraction of grid points where the true curve lies inside the band, per curve.
+
+    Only meaningful where the gauge of the truth matches the fit's (the separable family's
+    f2(0) = 0 holds for the benchmark systems).
+    """
+    out = {}
+    for name in names or bands:
+        b = bands[name]
+        z = np.asarray(b["z"])
+        y = np.asarray(truth[name](z), dtype=float)
+        out[name] = float(np.mean((y >= np.asarray(b["lo"])) & (y <= np.asarray(b["hi"]))))
+    return out
+

@@ -1,0 +1,47 @@
+"""``charcurves select``: read the records, run :func:`select_family`, print and write the verdicts."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+
+from .._errors import ConfigError
+
+__all__ = ["run_select"]
+
+
+def run_select(a, *, say, check_out) -> int:
+    """Run the family search for the parsed command line ``a``; 0 whether or not a family is accepted."""
+    from ..data import Trajectory
+    from ..io._csv import atomic_write_bytes
+    from ._bands import MIN_MEMBERS
+    from ._loops import select_family
+
+    families = [f.strip() for f in a.families.split(",") if f.strip()]
+    if not families:
+        raise ConfigError("--families is empty; give e.g. --families separable,position-damping")
+    if a.members < MIN_MEMBERS:
+        raise ConfigError(f"--members must be at least {MIN_MEMBERS} to measure the curves' spread, got {a.members}")
+    if a.out is not None:
+        check_out(a.out)
+    records = [Trajectory.from_csv(path, time_col=a.time_col, x_col=a.x_col, force_col=a.force_col)
+               for path in a.csv]
+    report = select_family(records, families, method=a.method, n_members=a.members, snr_db=a.snr,
+                           all_families=a.all, all_loops=a.all, random_state=a.seed,
+                           threads=1 if a.threads is None else a.threads, derivatives=a.derivatives,
+                           progress=None if a.quiet else (lambda text: say(f"  {text}")))
+    say(report.table())
+    if a.out is not None:
+        doc = report.to_dict()
+        doc["records"] = [os.path.abspath(p) for p in a.csv]
+        atomic_write_bytes(os.path.join(a.out, "selection.json"), json.dumps(doc, indent=1).encode())
+        rows = report.csv_rows()
+        buf = io.StringIO()
+        writer = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+        atomic_write_bytes(os.path.join(a.out, "selection.csv"), buf.getvalue().encode())
+        say(f"wrote {os.path.join(a.out, 'selection.json')}, selection.csv")
+    return 0

@@ -1,0 +1,420 @@
+"""Fast scalar evaluation of fitted curves for ODE right-hand sides, and jump splitting.
+
+An ODE solver calls the right-hand side with one state at a time, so a network curve that is
+evaluated through numpy pays tens of microseconds of array overhead per call. Here a curve is
+prepared once:
+
+* its **smooth part** is evaluated exactly (numpy / lambdified sympy) or from a **table**: a
+  cubic spline (``scipy.interpolate.CubicSpline``) on a fine uniform grid over the training
+  range plus a margin, evaluated by indexing the uniform grid. The table is checked against
+  the exact curve at every interval midpoint (where interpolation errs most) and refined, or
+  abandoned for exact evaluation, when the error exceeds ``table_rtol`` times the curve's range.
+  Outside the table the exact curve is used.
+* a **jump at 0** (dry friction) is split off: ``f(z) = smooth(z) + mu * sign(z)``. It is read
+  from the curve's parametrisation (a network's ``mu * tanh(u / eps)`` term, a symbolic
+  ``c * tanh(k z)`` or ``c * sign(z)`` term) or, for other curves, detected numerically. Only a
+  jump narrower than ``sharp_width`` times the curve's argument scale counts as a jump by
+  default; wider ones are smooth enough for the solver.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from .._errors import ConfigError
+
+__all__ = ["PreparedCurve", "prepare_curve", "EVALUATIONS", "JUMP_MODES"]
+
+EVALUATIONS = ("auto", "exact", "tabulated")
+JUMP_MODES = ("auto", "events", "smooth")
+
+#: Default: a tanh jump whose width is below this fraction of the argument scale is a jump.
+SHARP_WIDTH = 1e-3
+
+
+@dataclasses.dataclass
+class PreparedCurve:
+    """A curve ready for an ODE right-hand side.
+
+    Attributes
+    ----------
+    smooth : callable float -> float
+        The smooth part (the whole curve when ``jump_height`` is 0).
+    derivative : callable float -> float
+        Derivative of the smooth part.
+    jump_height : float
+        ``mu`` of the split-off jump ``mu * sign(z)``; 0 when none was split off.
+    jump_width : float
+        Width of the jump as fitted (``eps`` of ``tanh(z / eps)``; 0 for ``sign``), for reports.
+    evaluation : str
+        "exact" or "tabulated" (what was actually used).
+    table_error : float
+        Largest error of the table at the interval midpoints, relative to the curve's range
+        (NaN when not tabulated).
+    note : str
+        Why a requested table was not used, if so.
+    """
+
+    smooth: Callable[[float], float]
+    derivative: Callable[[float], float]
+    jump_height: float = 0.0
+    jump_width: float = float("nan")
+    evaluation: str = "exact"
+    table_error: float = float("nan")
+    note: str = ""
+
+    def __call__(self, z: float, direction: int | None = None) -> float:
+        """The whole curve; at ``z == 0`` the jump takes the side ``direction`` (0 when None)."""
+        s = direction if (z == 0.0 and direction is not None) else (0.0 if z == 0.0 else math.copysign(1.0, z))
+        return self.smooth(z) + self.jump_height * s
+
+
+# ---------------------------------------------------------------------------------- helpers
+def _vectorised(curve) -> Callable[[np.ndarray], np.ndarray]:
+    def f(z):
+        z = np.asarray(z, dtype=float)
+        return np.broadcast_to(np.asarray(curve(z), dtype=float), z.shape)
+
+    return f
+
+
+def _scale_of(curve) -> float:
+    dom = getattr(curve, "domain", None)
+    if dom is None:
+        return 1.0
+    s = max(abs(float(dom[0])), abs(float(dom[1])))
+    return s if s > 0 and math.isfinite(s) else 1.0
+
+
+def _finite_difference(f: Callable[[np.ndarray], np.ndarray], scale: float) -> Callable[[float], float]:
+    h0 = 1e-6 * scale
+
+    def df(z: float) -> float:
+        h = h0 * max(1.0, abs(z) / scale)
+        return float((f(np.array([z + h]))[0] - f(np.array([z - h]))[0]) / (2.0 * h))
+
+    return df
+
+
+def _scalar(f: Callable[[np.ndarray], np.ndarray]) -> Callable[[float], float]:
+    def g(z: float) -> float:
+        return float(f(np.array([z]))[0])
+
+    return g
+
+
+# ---------------------------------------------------------------------------------- jumps
+def _neural_jump(curve):
+    """(mean height, largest width) of a network curve's jump term, else None."""
+    spec = getattr(curve, "spec", None)
+    if spec is None or not getattr(spec, "jump", False):
+        return None
+    mu, width = _jump_members(curve)
+    return float(mu.mean()), float(width.max())
+
+
+def _network_vectorised(curve, drop_jump: bool):
+    """A network curve's numpy evaluation plus its shift, without its jump term when asked;
+    None for other curves.
+
+    The jump is dropped by evaluating a shallow copy whose jump heights are 0 (the curve's own
+    numpy path, so nothing of the network is re-implemented here).
+    """
+    if not hasattr(curve, "numpy_function") or not hasattr(curve, "theta"):
+        return None
+    net = curve
+    if drop_jump and getattr(curve.spec, "jump", False):
+        import copy
+
+        net = copy.copy(curve)
+        net.__dict__.pop("_np_fn", None)
+        net.__dict__.pop("_prepared_for_simulation", None)
+        net.theta = curve.theta.copy()
+        net.theta[:, curve.spec.slices()["jump_height"]] = 0.0
+    fn, shift = net.numpy_function(), float(curve.shift)
+
+    def f(z):
+        return fn(np.asarray(z, dtype=float)) + shift
+
+    return f
+
+
+def _network_scalar(f: Callable[[np.ndarray], np.ndarray]) -> Callable[[float], float]:
+    buf = np.empty(1)
+
+    def g(z: float) -> float:
+        buf[0] = z
+        return float(f(buf)[0])
+
+    return g
+
+
+def _jump_members(curve) -> tuple[np.ndarray, np.ndarray]:
+    """Per-member jump heights and widths of a network curve, in the curve's own units."""
+    # imported here: the module loads torch, which a network curve has loaded already anyway
+    from ..curves._neural import jump_log_eps  # the raw width parameter is mapped, not exp'd
+
+    sl = curve.spec.slices()
+    mu = curve.theta[:, sl["jump_height"]].reshape(-1) * curve.out_scale
+    width = np.exp(jump_log_eps(curve.theta[:, sl["jump_log_eps"]].reshape(-1))) * curve.in_scale
+    return mu, width
+
+
+def _symbolic_jump(expr, scale: float, sharp: float | None):
+    """Split sympy ``expr`` (in z) into (smooth expression, height, width) by its sign/tanh terms.
+
+    ``sharp`` is the widest tanh that counts as a jump (None: any tanh(k z) term).
+    """
+    import sympy as sp
+
+    z = sp.Symbol("z")
+    height, width, smooth_terms = 0.0, 0.0, []
+    for term in sp.Add.make_args(expr):
+        coeff, rest = term.as_coeff_Mul()
+        k = None
+        if isinstance(rest, sp.sign) and rest.args[0] == z:
+            k = math.inf
+        elif isinstance(rest, sp.tanh):
+            arg = sp.expand(rest.args[0])
+            kz = arg.coeff(z)
+            if kz.is_number and sp.simplify(arg - kz * z) == 0 and kz != 0:
+                k = float(kz)
+        if k is not None and (sharp is None or abs(k) == math.inf or 1.0 / abs(k) <= sharp * scale):
+            height += float(coeff) * (1.0 if k > 0 else -1.0)
+            width = max(width, 0.0 if abs(k) == math.inf else 1.0 / abs(k))
+            continue
+        smooth_terms.append(term)
+    if height == 0.0:
+        return None
+    return sp.Add(*smooth_terms), height, width
+
+
+def _numeric_jump(f: Callable[[np.ndarray], np.ndarray], scale: float):
+    """(height, width) of a jump at 0 that is narrower than 1e-9 of the scale, else None.
+
+    A jump shows as a difference f(d) - f(-d) that does not shrink with d; for a smooth curve
+    it halves when d halves.
+    """
+    d = 1e-9 * scale
+    y = f(np.array([-2 * d, -d, d, 2 * d]))
+    near, far = y[2] - y[1], y[3] - y[0]
+    spread = float(np.ptp(f(np.linspace(-scale, scale, 201))))
+    if not np.isfinite(near) or abs(near) <= 1e-6 * max(spread, 1e-300):
+        return None
+    if abs(far - near) > 1e-3 * abs(near):
+        return None
+    return 0.5 * float(near), 0.0
+
+
+def _with_jump_term(value, slope, curve, outside=None):
+    """Add a network's own ``mean_m mu_m tanh(z / w_m)`` to scalar value/slope functions.
+
+    With ``outside=(lo, hi)``, beyond that range ``value``/``slope`` are the exact whole curve
+    already and get nothing added.
+    """
+    members = list(zip(*(a.tolist() for a in _jump_members(curve))))
+    n = len(members)
+    lo, hi = outside if outside is not None else (-math.inf, math.inf)
+
+    def v(z: float) -> float:
+        base = value(z)
+        if not (lo <= z <= hi):
+            return base
+        return base + sum(mu * math.tanh(z / w) for mu, w in members) / n
+
+    def d(z: float) -> float:
+        base = slope(z)
+        if not (lo <= z <= hi):
+            return base
+        return base + sum(mu / w * (1.0 - math.tanh(z / w) ** 2) for mu, w in members) / n
+
+    return v, d
+
+
+# ---------------------------------------------------------------------------------- tables
+class _Table:
+    """Cubic spline on a uniform grid, evaluated by direct indexing (microseconds per call)."""
+
+    def __init__(self, f: Callable[[np.ndarray], np.ndarray], lo: float, hi: float, n: int):
+        from scipy.interpolate import CubicSpline
+
+        self.z = np.linspace(lo, hi, n)
+        self.spline = CubicSpline(self.z, f(self.z))
+        self.lo, self.hi = lo, hi
+        self.inv_h = (n - 1) / (hi - lo)
+        self.last = n - 2
+        # per interval (left node, c3, c2, c1, c0) as Python floats: a scalar call never touches numpy
+        c = self.spline.c
+        self.rows = list(zip(self.z[:-1].tolist(), c[0].tolist(), c[1].tolist(), c[2].tolist(), c[3].tolist()))
+
+    def value(self, z: float, exact: Callable[[float], float]) -> float:
+        if not (self.lo <= z <= self.hi):
+            return exact(z)
+        i = int((z - self.lo) * self.inv_h)
+        z0, a, b, c, d = self.rows[i if i <= self.last else self.last]
+        u = z - z0
+        return ((a * u + b) * u + c) * u + d
+
+    def slope(self, z: float, exact: Callable[[float], float]) -> float:
+        if not (self.lo <= z <= self.hi):
+            return exact(z)
+        i = int((z - self.lo) * self.inv_h)
+        z0, a, b, c, _ = self.rows[i if i <= self.last else self.last]
+        u = z - z0
+        return (3.0 * a * u + 2.0 * b) * u + c
+
+    def midpoint_error(self, f: Callable[[np.ndarray], np.ndarray]) -> float:
+        mid = 0.5 * (self.z[:-1] + self.z[1:])
+        exact = f(mid)
+        spread = float(np.ptp(exact))
+        return float(np.max(np.abs(self.spline(mid) - exact)) / max(spread, 1e-300))
+
+
+def prepare_curve(curve, *, evaluation: str = "auto", jump: str = "auto", margin: float = 1.0,
+                  table_points: int = 4097, table_rtol: float = 1e-7, max_table_points: int = 1 << 17,
+                  sharp_width: float = SHARP_WIDTH, split_jump: bool = True) -> PreparedCurve:
+    """Prepare ``curve`` (a FittedCurve or any vectorised callable) for scalar evaluation.
+
+    Parameters
+    ----------
+    curve : FittedCurve or callable
+    evaluation : {"auto", "exact", "tabulated"}
+        "auto" tabulates network curves (per-call overhead dominates there) and evaluates
+        closed forms (symbolic and basis curves, lambdified) exactly; "tabulated" tabulates
+        every curve with a domain.
+    jump : {"auto", "events", "smooth"}
+        "auto" splits off a jump narrower than ``sharp_width`` times the argument scale;
+        "events" splits off any jump term found (whatever its width); "smooth" never splits.
+    margin : float
+        The table covers the domain widened by ``margin`` times its width on each side.
+    table_points, max_table_points : int
+        Initial and largest number of grid nodes (doubled until ``table_rtol`` is met).
+    table_rtol : float
+        Largest midpoint error of the table relative to the curve's range.
+    split_jump : bool
+        False for curves whose argument is not a velocity (a jump there is not dry friction).
+
+    Raises
+    ------
+    ConfigError
+        For an unknown ``evaluation`` or ``jump``, or ``jump="events"`` on a curve without a jump.
+    """
+    if evaluation not in EVALUATIONS:
+        raise ConfigError(f"unknown curve evaluation {evaluation!r}; choose one of {', '.join(EVALUATIONS)}")
+    if jump not in JUMP_MODES:
+        raise ConfigError(f"unknown jump handling {jump!r}; choose one of {', '.join(JUMP_MODES)}")
+    options = (evaluation, jump, margin, table_points, table_rtol, max_table_points, sharp_width, split_jump)
+    if not hasattr(curve, "domain"):
+        return _prepare(curve, *options)
+    # a fitted curve is prepared once per set of options (validation simulates one model many
+    # times); the key also holds the mutable gauge shift and domain
+    key = (*options, curve.shift, curve.domain)
+    cache = curve.__dict__.setdefault("_prepared_for_simulation", _Cache())
+    if key not in cache:
+        cache[key] = _prepare(curve, *options)
+    return cache[key]
+
+
+class _Cache(dict):
+    """Prepared curves kept on a curve object; pickled and copied as empty (they hold closures)."""
+
+    def __reduce__(self):
+        return (_Cache, ())
+
+
+def _prepare(curve, evaluation, jump, margin, table_points, table_rtol, max_table_points, sharp_width,
+             split_jump) -> PreparedCurve:
+    network = _network_vectorised(curve, drop_jump=False)
+    full = network or _vectorised(curve)
+    scale = _scale_of(curve)
+    smooth_vec, height, width = full, 0.0, float("nan")
+    smooth_expr = None
+    # a network's own jump term that stays in the curve: added exactly after the table, which
+    # then only holds the smooth network part (a near-discontinuity cannot be tabulated)
+    kept_jump = False
+    expr = curve.expression() if hasattr(curve, "expression") else None
+    neural = _neural_jump(curve)
+    if neural is not None:
+        mu, w = neural
+        sharp = None if jump == "events" else sharp_width
+        smooth_vec = _network_vectorised(curve, drop_jump=True)  # the network without its jump term
+        if split_jump and jump != "smooth" and (sharp is None or w <= sharp * scale):
+            height, width = mu, w
+        else:
+            kept_jump = True
+    if split_jump and jump != "smooth" and neural is None:
+        sharp = None if jump == "events" else sharp_width
+        if expr is not None:
+            split = _symbolic_jump(expr, scale, sharp)
+            if split is not None:
+                smooth_expr, height, width = split
+        else:
+            found = _numeric_jump(full, scale)
+            if found is not None:
+                height, width = found
+                smooth_vec = lambda z: full(z) - height * np.sign(z)  # noqa: E731
+        if jump == "events" and height == 0.0:
+            name = getattr(curve, "name", None)
+            raise ConfigError(f"{f'curve {name}' if name else 'the curve'} has no jump at 0 to treat with events; "
+                              "use jump='auto' or jump='smooth'")
+
+    # exact scalar evaluation (and its derivative)
+    if expr is not None and (smooth_expr is not None or smooth_vec is full):
+        import sympy as sp
+
+        zs = sp.Symbol("z")
+        e = smooth_expr if smooth_expr is not None else expr
+        fn = sp.lambdify(zs, e, modules="numpy")
+        exact = lambda z: float(fn(z))  # noqa: E731
+        smooth_vec = lambda z: np.broadcast_to(np.asarray(fn(np.asarray(z, float)), float), np.shape(z))  # noqa: E731
+        # d sign(z)/dz is 0 away from 0 (the jump is not part of the tangent dynamics)
+        de = sp.diff(e, zs).subs(sp.Derivative(sp.sign(zs), zs), 0)
+        try:
+            dfn = sp.lambdify(zs, de, modules="numpy")
+            exact_slope = lambda z: float(dfn(z))  # noqa: E731
+        except Exception:  # a derivative numpy cannot print (unevaluated): central differences
+            exact_slope = _finite_difference(smooth_vec, scale)
+    else:
+        exact = _network_scalar(smooth_vec) if network is not None else _scalar(smooth_vec)
+        exact_slope = _finite_difference(smooth_vec, scale)
+
+    if kept_jump:
+        exact, exact_slope = _with_jump_term(exact, exact_slope, curve)
+    dom = getattr(curve, "domain", None)
+    want_table = evaluation == "tabulated" or (evaluation == "auto" and expr is None and dom is not None)
+    if evaluation == "tabulated" and dom is None:
+        raise ConfigError("tabulated evaluation needs a curve with a domain (a fitted curve); "
+                          "use evaluation='exact'")
+    if not want_table:
+        return PreparedCurve(exact, exact_slope, height, width, "exact")
+    lo, hi = float(dom[0]), float(dom[1])
+    pad = margin * (hi - lo) if hi > lo else 1.0
+    lo, hi = lo - pad, hi + pad
+    n = int(table_points)
+    previous = None
+    while True:
+        table = _Table(smooth_vec, lo, hi, n)
+        err = table.midpoint_error(smooth_vec)
+        if previous is not None and err > table_rtol:
+            # a smooth curve's error falls ~16x per doubling; a kinked one (ReLU) ~4x: give up at
+            # once when the observed rate cannot reach the tolerance within max_table_points
+            rate = max(previous / max(err, 1e-300), 1.0 + 1e-9)
+            doublings = math.log(err / table_rtol) / math.log(rate)
+            if n * 2.0 ** doublings > max_table_points:
+                return PreparedCurve(exact, exact_slope, height, width, "exact", err,
+                                     f"table error {err:.2g} > {table_rtol:g} with {n} points; evaluated exactly")
+        previous = err
+        if err <= table_rtol:
+            value = lambda z: table.value(z, exact)  # noqa: E731
+            slope = lambda z: table.slope(z, exact_slope)  # noqa: E731
+            if kept_jump:
+                value, slope = _with_jump_term(value, slope, curve, outside=(lo, hi))
+            return PreparedCurve(value, slope, height, width, "tabulated", err)
+        if 2 * n - 1 > max_table_points:
+            return PreparedCurve(exact, exact_slope, height, width, "exact", err,
+                                 f"table error {err:.2g} > {table_rtol:g} with {n} points; evaluated exactly")
+        n = 2 * n - 1

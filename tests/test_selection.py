@@ -1,0 +1,216 @@
+"""Model selection: noise floor, the three validation loops, select_family and `charcurves select`."""
+
+import json
+
+import numpy as np
+import pytest
+
+from charcurves._errors import ConfigError, DataError
+from charcurves.cli import main
+from charcurves.data import Trajectory, corrupt
+from charcurves.selection import (Ensemble, inner_loop, middle_loop, noise_floor, select_family,
+                                  split_record)
+from charcurves.selection._loops import INNER_FACTOR, MIDDLE_THRESHOLD, REL_FLOOR
+from charcurves.systems import get_system
+
+DUFFING_STARTS = [(0.5, -0.5, 0.5), (-1.0, 0.3, 0.45), (1.2, 0.0, 0.55)]
+VDP_STARTS = [(0.5, 0.0, 1.2), (-1.0, 0.5, 1.0), (1.5, 0.0, 1.4)]
+
+
+def records(system, starts, snr):
+    return [corrupt(system.simulate(x0=x0, v0=v0, A=A), snr, seed=k) for k, (x0, v0, A) in enumerate(starts)]
+
+
+# --------------------------------------------------------------------------- noise floor
+def test_noise_floor_estimates_the_forcing_noise_variance():
+    system = get_system("duffing")
+    clean = system.simulate()
+    noisy = corrupt(clean, 20, seed=0)
+    true_var = float(np.var(noisy.F - clean.F))
+    nf = noise_floor(noisy)
+    assert nf.sigma2_force == pytest.approx(true_var, rel=0.1)
+    assert nf.sigma2_acceleration < 1e-3 * true_var  # the given x'' is clean
+    given = noise_floor(noisy, snr_db=20)
+    assert given.sigma2_force == pytest.approx(0.01 * np.var(clean.F), rel=0.02)
+    # a noise-free record: the floor is the relative floor (40 dB), not zero
+    nf0 = noise_floor(clean)
+    assert nf0.floor == pytest.approx(REL_FLOOR * np.var(clean.F), rel=0.01)
+
+
+def test_noise_floor_is_not_fooled_by_a_sharp_clean_acceleration():
+    # the Van der Pol-type record has a fast-changing x''; signal leaking into the estimate would
+    # inflate the floor and let a poor fit pass
+    system = get_system("van-der-pol")
+    clean = system.simulate()
+    noisy = corrupt(clean, 25, seed=0)
+    nf = noise_floor(noisy)
+    assert nf.sigma2_force == pytest.approx(float(np.var(noisy.F - clean.F)), rel=0.1)
+    assert nf.sigma2_acceleration < 0.01 * nf.sigma2_force
+
+
+def test_noise_floor_refuses_a_record_too_short_to_estimate():
+    t = np.linspace(0, 1, 40)
+    with pytest.raises(DataError, match="too short to estimate its noise floor"):
+        noise_floor(Trajectory(t=t, x=np.sin(t), F=np.cos(t)))
+
+
+# --------------------------------------------------------------------------- loops on hand-made inputs
+class _Curve:
+    def __init__(self, fn, domain):
+        self.fn, self.domain, self.argument = fn, domain, "z"
+
+    def __call__(self, z):
+        return self.fn(np.asarray(z, dtype=float))
+
+
+class _Model:
+    def __init__(self, curves, loss=0.0, gain=1.0):
+        self.curves, self.loss, self.gain = curves, loss, gain
+
+
+def _ensemble(shift, sd, seed, domain=(-1.0, 1.0)):
+    """A curve z**3 + shift whose members scatter by a constant `sd` (exactly, after centring)."""
+    rng = np.random.default_rng(seed)
+    offsets = rng.normal(size=8)
+    offsets = (offsets - offsets.mean()) / offsets.std(ddof=1) * sd
+    point = _Model({"f1": _Curve(lambda z: z**3 + shift, domain)})
+    members = [_Model({"f1": _Curve(lambda z, o=o: z**3 + shift + o, domain)}) for o in offsets]
+    return Ensemble(point=point, members=members, record=None, kind="bootstrap")
+
+
+def test_middle_loop_passes_agreeing_curves_and_rejects_shifted_ones():
+    same = middle_loop([_ensemble(0.0, 0.1, 0), _ensemble(0.05, 0.1, 1)])
+    # d = 0.05 / sqrt(0.1² + 0.1² + (0.01·scale)²) with scale the curves' RMS size (~0.38)
+    assert same.passed and same.statistic == pytest.approx(0.05 / np.sqrt(0.02), rel=0.02)
+    apart = middle_loop([_ensemble(0.0, 0.1, 0), _ensemble(1.0, 0.1, 1)])
+    assert not apart.passed and apart.statistic == pytest.approx(1.0 / np.sqrt(0.02), rel=0.02)
+    assert apart.threshold == MIDDLE_THRESHOLD
+
+
+def test_middle_loop_compares_only_the_common_range():
+    left = _ensemble(0.0, 0.1, 0, domain=(-1.0, 0.5))
+    right = _ensemble(0.0, 0.1, 1, domain=(0.4, 2.0))  # overlap 0.1 of a joint range of 3
+    with pytest.raises(DataError, match="no two trajectories share enough"):
+        middle_loop([left, right])
+    with pytest.raises(DataError, match="at least two trajectories"):
+        middle_loop([left])
+
+
+def test_inner_loop_ratio_and_verdict():
+    system = get_system("duffing")
+    rec = corrupt(system.simulate(), 20, seed=0)
+    floor = noise_floor(rec).floor
+    good = inner_loop([_Model({}, loss=1.2 * floor)], [rec])
+    assert good.passed and good.statistic == pytest.approx(1.2)
+    bad = inner_loop([_Model({}, loss=1.2 * floor), _Model({}, loss=3.0 * floor)], [rec, rec])
+    assert not bad.passed and bad.statistic == pytest.approx(3.0) and bad.threshold == INNER_FACTOR
+
+
+def test_split_record_gives_consecutive_halves():
+    rec = get_system("duffing").simulate()
+    a, b = split_record(rec)
+    assert a.n_samples == b.n_samples == 500 and a.t[-1] < b.t[0] and b.x[0] == rec.x[500]
+
+
+# --------------------------------------------------------------------------- select_family
+def test_select_with_poly_cc_rejects_separable_on_van_der_pol_data():
+    recs = records(get_system("van-der-pol"), VDP_STARTS[:2], 25)
+    report = select_family(recs, ["separable", "position-damping"], method="poly-cc", n_members=4)
+    sep, pd = report.rows
+    assert report.accepted == "position-damping"
+    assert sep["verdict"] == "rejected" and sep["rejected_by"] == "inner"
+    assert sep["inner"]["statistic"] > 100  # the cross term x²x' is far above the noise floor
+    assert pd["verdict"] == "accepted"
+    assert pd["inner"]["statistic"] < INNER_FACTOR
+    assert pd["middle"]["statistic"] < 1.5
+    assert pd["outer"]["statistic"] > 0.9  # the model follows the held-out trajectory throughout
+
+
+def test_select_with_poly_cc_accepts_separable_on_duffing_and_stops_there():
+    recs = records(get_system("duffing"), DUFFING_STARTS[:2], 20)
+    report = select_family(recs, ["separable", "position-damping"], method="poly-cc", n_members=4)
+    assert report.accepted == "separable"
+    assert [r["verdict"] for r in report.rows] == ["accepted", "not tested"]
+    sep = report.rows[0]
+    assert sep["inner"]["statistic"] == pytest.approx(1.0, abs=0.1)  # loss at the noise floor
+    assert sep["outer"]["statistic"] >= 0.2
+    text = report.table()
+    assert "separable" in text and "accepted: separable" in text
+
+
+def test_select_first_order_runs_inner_and_middle_and_says_the_outer_loop_was_not_run():
+    rec = corrupt(get_system("first-order").simulate(), 25, seed=0)
+    report = select_family([rec], ["first-order"], method="poly-cc", n_members=3)  # one record: two halves
+    row = report.rows[0]
+    assert report.settings["split_one_record"] and report.accepted == "first-order"
+    assert row["inner"]["statistic"] < INNER_FACTOR and row["middle"]["statistic"] < MIDDLE_THRESHOLD
+    assert row["outer"]["passed"] is None and row["outer"]["statistic"] == "n/a"
+    assert row["outer"]["figures"]["note"].startswith("not run: the outer loop simulates one-state templates")
+
+
+def test_select_refuses_an_unknown_family_before_fitting():
+    rec = get_system("duffing").simulate()
+    with pytest.raises(ConfigError, match="unknown family 'quadratic'"):
+        select_family([rec, rec], ["separable", "quadratic"])
+    with pytest.raises(ConfigError, match="no candidate family"):
+        select_family([rec], [" "])
+
+
+def test_cli_select_prints_the_table_and_writes_json_and_csv(tmp_path, capsys):
+    paths = []
+    for k, rec in enumerate(records(get_system("van-der-pol"), VDP_STARTS[:2], 25)):
+        paths.append(tmp_path / f"vdp{k}.csv")
+        rec.to_csv(paths[-1])
+    out = tmp_path / "sel"
+    code = main(["select", *map(str, paths), "--families", "separable,position-damping", "--method", "poly-cc",
+                 "--members", "4", "--out", str(out), "--quiet"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "accepted: position-damping" in printed
+    doc = json.loads((out / "selection.json").read_text())
+    assert doc["accepted"] == "position-damping"
+    assert [f["verdict"] for f in doc["families"]] == ["rejected", "accepted"]
+    rows = (out / "selection.csv").read_text().splitlines()
+    assert rows[0].startswith("family,verdict,rejected_by,loss_over_floor")
+    assert rows[1].startswith("separable,rejected,inner,")
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--members", "2"], "--members must be at least 3"),
+    (["--families", "separable,bogus"], "unknown family 'bogus'"),
+    (["--families", ","], "--families is empty"),
+])
+def test_cli_select_bad_options_exit_2_with_one_line(tmp_path, capsys, args, message):
+    path = tmp_path / "d.csv"
+    get_system("duffing").simulate(n_points=200).to_csv(path)
+    assert main(["select", str(path), *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and message in err
+
+
+# --------------------------------------------------------------------------- the acceptance runs (NN-CC)
+@pytest.mark.slow
+def test_cli_select_nn_cc_on_van_der_pol_rejects_separable_accepts_position_damping(tmp_path, capsys):
+    paths = []
+    for k, rec in enumerate(records(get_system("van-der-pol"), VDP_STARTS, 25)):
+        paths.append(tmp_path / f"vdp{k}.csv")
+        rec.to_csv(paths[-1])
+    out = tmp_path / "sel"
+    assert main(["select", *map(str, paths), "--out", str(out), "--quiet"]) == 0
+    doc = json.loads((out / "selection.json").read_text())
+    sep, pd = doc["families"]
+    assert doc["accepted"] == "position-damping"
+    assert sep["rejected_by"] == "inner" and sep["inner"]["statistic"] > 100
+    assert pd["inner"]["statistic"] < INNER_FACTOR and pd["middle"]["statistic"] < MIDDLE_THRESHOLD
+    assert pd["outer"]["statistic"] > 0.9
+
+
+@pytest.mark.slow
+def test_select_nn_cc_on_duffing_accepts_separable():
+    recs = records(get_system("duffing"), DUFFING_STARTS, 20)
+    report = select_family(recs, ["separable", "position-damping"])
+    assert report.accepted == "separable"
+    sep = report.rows[0]
+    assert sep["inner"]["statistic"] == pytest.approx(1.0, abs=0.1)
+    assert sep["middle"]["statistic"] < MIDDLE_THRESHOLD
+    assert sep["outer"]["statistic"] >= 0.2

@@ -1,0 +1,144 @@
+"""Symmetry detection: parity statistics, proposals, `symmetry="auto"` and `--sym auto`."""
+
+import json
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from charcurves._errors import ConfigError
+from charcurves.cli import main
+from charcurves.data import Trajectory, corrupt
+from charcurves.fitting import CharacteristicCurves
+from charcurves.selection import Ensemble, detect_symmetry, parity_tests
+from charcurves.selection._symmetry import PARITY_THRESHOLD, _method_for
+from charcurves.systems import get_system
+
+
+def quadratic_spring_record(snr=20, seed=0):
+    """x'' + 0.3 x' + x + 0.5 x² = 0.4 cos(1.1 t): odd damping, a spring with no parity."""
+    def rhs(t, y):
+        return [y[1], 0.4 * np.cos(1.1 * t) - 0.3 * y[1] - y[0] - 0.5 * y[0] ** 2]
+
+    t = np.linspace(0, 40, 1000)
+    sol = solve_ivp(rhs, (0, 40), [0.3, 0.0], t_eval=t, rtol=1e-10, atol=1e-12, method="LSODA")
+    x, v = sol.y
+    F = 0.4 * np.cos(1.1 * t)
+    clean = Trajectory(t=t, x=x, F=F, v=v, a=F - 0.3 * v - x - 0.5 * x**2)
+    return corrupt(clean, snr, seed=seed)
+
+
+class _Curve:
+    def __init__(self, fn, domain):
+        self.fn, self.domain, self.argument = fn, domain, "z"
+
+    def __call__(self, z):
+        return self.fn(np.asarray(z, dtype=float))
+
+
+class _Template:
+    family = "other"  # no free constant: oddness is tested exactly
+
+
+class _Model:
+    def __init__(self, curves):
+        self.curves, self.template = curves, _Template()
+
+
+def _ensemble(fn, domain=(-1.0, 1.0), sd=0.05, seed=0):
+    rng = np.random.default_rng(seed)
+    offsets = [(a, b) for a, b in rng.normal(scale=sd, size=(8, 2))]
+    point = _Model({"f1": _Curve(fn, domain)})
+    # members scatter by a random linear term and a constant: a spread both parities can see
+    members = [_Model({"f1": _Curve(lambda z, a=a, b=b: fn(z) + a * z + b, domain)}) for a, b in offsets]
+    return Ensemble(point=point, members=members, record=None, kind="bootstrap")
+
+
+def test_parity_tests_on_known_curves():
+    odd = parity_tests(_ensemble(lambda z: z + z**3))["f1"]
+    assert odd["proposal"] == "odd" and odd["odd_stat"] == pytest.approx(0.0, abs=1e-9)
+    assert odd["even_stat"] > 5 * PARITY_THRESHOLD
+    even = parity_tests(_ensemble(lambda z: z**2))["f1"]
+    assert even["proposal"] == "even" and even["even_stat"] == pytest.approx(0.0, abs=1e-9)
+    neither = parity_tests(_ensemble(lambda z: z + 0.5 * z**2))["f1"]
+    assert neither["proposal"] == "none" and neither["reason"] == "the data contradict both parities"
+    assert neither["odd_stat"] > PARITY_THRESHOLD and neither["even_stat"] > PARITY_THRESHOLD
+    flat = parity_tests(_ensemble(lambda z: 0.0 * z))["f1"]
+    assert flat["proposal"] == "none" and "both parities fit" in flat["reason"]
+
+
+def test_parity_is_never_imposed_on_a_one_sided_range():
+    one_sided = parity_tests(_ensemble(lambda z: z**3, domain=(0.2, 1.5)))["f1"]
+    assert one_sided["proposal"] == "none" and one_sided["reason"].startswith("one-sided range [0.2, 1.5]")
+    nearly = parity_tests(_ensemble(lambda z: z**3, domain=(-0.1, 1.5)))["f1"]
+    assert nearly["proposal"] == "none" and nearly["reason"].startswith("nearly one-sided range")
+
+
+def test_small_asymmetry_within_the_uncertainty_keeps_the_parity():
+    # an odd curve with an asymmetric wiggle of 0.02 against a spread of 0.05: still odd
+    res = parity_tests(_ensemble(lambda z: z**3 + 0.02 * z**2, sd=0.05))["f1"]
+    assert res["proposal"] == "odd" and res["odd_stat"] < PARITY_THRESHOLD
+
+
+def test_method_for_the_detected_priors():
+    assert _method_for("nn-cc", True) == "nn-cc+sym"
+    assert _method_for("nn-cc+post-sr", True) == "nn-cc+sym+post-sr"
+    assert _method_for("nn-cc+sym", False) == "nn-cc"
+    assert _method_for("nn-cc+sym+post-sr", False) == "nn-cc+post-sr"
+    assert _method_for("poly-cc", True) == "poly-cc"
+    assert _method_for("sindy-cc", True) == "sindy-cc+sym"
+
+
+def test_poly_cc_detection_on_duffing_and_on_a_quadratic_spring():
+    duffing = detect_symmetry(corrupt(get_system("duffing").simulate(), 20, seed=0), method="poly-cc")
+    assert (duffing["f1"]["proposal"], duffing["f2"]["proposal"]) == ("odd", "odd")
+    quad = detect_symmetry(quadratic_spring_record(), method="poly-cc")
+    assert quad["f1"]["proposal"] == "odd"
+    assert quad["f2"]["proposal"] == "none" and quad["f2"]["odd_stat"] > 5 * PARITY_THRESHOLD
+
+
+def test_auto_symmetry_with_poly_cc_applies_and_reports_the_decision():
+    model = CharacteristicCurves(method="poly-cc", symmetry="auto").fit(quadratic_spring_record()).model_
+    auto = model.info["symmetry_auto"]
+    assert auto["applied"] == {"f1": "odd", "f2": "none"} and auto["method"] == "poly-cc"
+    doc = model.result_dict()
+    assert doc["symmetry"]["applied"] == {"f1": "odd", "f2": "none"}
+    assert doc["symmetry"]["tests"]["f2"]["proposal"] == "none"
+    # the imposed odd damping: f1(-z) = -f1(z) exactly
+    z = np.linspace(0.1, 0.9, 5)
+    f1 = model.curves["f1"]
+    assert np.allclose(f1(-z), -f1(z), atol=1e-12)
+
+
+def test_auto_symmetry_refuses_a_method_without_priors():
+    rec = get_system("duffing").simulate()
+    with pytest.raises(ConfigError, match="--sym auto needs a method that takes a symmetry prior"):
+        CharacteristicCurves(method="sr", symmetry="auto").fit(rec)
+
+
+@pytest.mark.slow
+def test_cli_sym_auto_proposes_odd_odd_on_duffing(tmp_path, capsys):
+    path = tmp_path / "d.csv"
+    corrupt(get_system("duffing").simulate(), 20, seed=0).to_csv(path)
+    out = tmp_path / "fit"
+    assert main(["fit", str(path), "--method", "nn-cc", "--sym", "auto", "--out", str(out), "--quiet",
+                 "--no-figure", "--truth", "duffing"]) == 0
+    doc = json.loads((out / "result.json").read_text())
+    assert doc["symmetry"]["applied"] == {"f1": "odd", "f2": "odd"}
+    assert doc["method"] == "nn-cc+sym"
+    for name in ("f1", "f2"):
+        assert doc["symmetry"]["tests"][name]["odd_stat"] < PARITY_THRESHOLD
+        assert doc["symmetry"]["tests"][name]["even_stat"] > 10 * PARITY_THRESHOLD
+    assert doc["curve_rmse"]["f2"] < 0.02
+
+
+@pytest.mark.slow
+def test_sym_auto_imposes_no_symmetry_on_a_quadratic_spring():
+    model = CharacteristicCurves(method="nn-cc+sym", symmetry="auto").fit(quadratic_spring_record()).model_
+    auto = model.info["symmetry_auto"]
+    assert auto["applied"]["f2"] == "none"
+    assert auto["tests"]["f2"]["odd_stat"] > 5 * PARITY_THRESHOLD
+    # the fitted stiffness keeps its quadratic term: f2(z) + f2(-z) = z² (gauge f2(0) = 0)
+    z = np.linspace(0.2, 0.6, 5)
+    f2 = model.curves["f2"]
+    assert np.allclose(f2(z) + f2(-z), z**2, atol=0.05)
