@@ -53,6 +53,7 @@ def test_tiny_benchmark_through_the_cli_writes_csv_and_report_and_resumes(tmp_pa
                   "Figs. 9 and 13", "Appendix F", "Appendix C", "Appendix G", "Run status"):
         assert title in html, title
     assert html.count("data:image/png;base64,") >= 4
+    assert "could not be built" not in html
     png = base64.b64decode(html.split("data:image/png;base64,")[1].split('"')[0])
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
     # sections without data say so instead of failing
@@ -74,6 +75,16 @@ def test_tiny_benchmark_through_the_cli_writes_csv_and_report_and_resumes(tmp_pa
                                   before.sort_values(REQUIRED[:4]).reset_index(drop=True))
     with ResultsStore(out / "results.sqlite") as st:
         assert len(st) == 8
+        # a job whose worker died is a failed row: reported, kept on a plain rerun, redone on --retry-failed
+        row = next(r for r in st.rows() if r["method"] == "poly-cc" and r["snr_db"] == 10.0)
+        st.write({**row, "status": "failed", "error": "worker process died (test)", "rmse_f1": None})
+    assert _bench(out) == 0
+    csv = pd.read_csv(out / "results.csv")
+    assert (csv["status"] == "failed").sum() == 1
+    assert "worker process died (test)" in (out / "report.md").read_text(encoding="utf-8")
+    assert _bench(out, "--retry-failed") == 0
+    csv = pd.read_csv(out / "results.csv")
+    assert len(csv) == 8 and set(csv["status"]) == {"ok"}
 
 
 @pytest.mark.parametrize("args, message", [
@@ -242,6 +253,7 @@ def test_miw_and_sensitivity_side_studies_on_a_tiny_nn_cc_run(tmp_path, monkeypa
                                                                           ("width", 4, False)]
     assert all(r["rmse_f1"] < 0.02 and r["rmse_f2"] < 0.02 for r in sens)
     md = open(res.report_md, encoding="utf-8").read()
+    assert "could not be built" not in md
     assert "| (b)/(e) one dataset | nn-cc | default | 2 |" in md
     assert "| activation | softplus (preset's own) |" in md
     # a rerun finds everything cached: no job, no side study recomputed

@@ -1,5 +1,6 @@
 """Model selection: noise floor, the three validation loops, select_family and `charcurves select`."""
 
+import copy
 import json
 
 import numpy as np
@@ -8,10 +9,11 @@ import pytest
 from charcurves._errors import ConfigError, DataError
 from charcurves.cli import main
 from charcurves.data import Trajectory, corrupt
-from charcurves.selection import (Ensemble, inner_loop, middle_loop, noise_floor, select_family,
+from charcurves.fitting import CharacteristicCurves
+from charcurves.selection import (Ensemble, inner_loop, middle_loop, noise_floor, outer_loop, select_family,
                                   split_record)
 from charcurves.selection._loops import INNER_FACTOR, MIDDLE_THRESHOLD, REL_FLOOR
-from charcurves.systems import get_system
+from charcurves.systems import corrupt_forces, get_system
 
 DUFFING_STARTS = [(0.5, -0.5, 0.5), (-1.0, 0.3, 0.45), (1.2, 0.0, 0.55)]
 VDP_STARTS = [(0.5, 0.0, 1.2), (-1.0, 0.5, 1.0), (1.5, 0.0, 1.4)]
@@ -138,14 +140,52 @@ def test_select_with_poly_cc_accepts_separable_on_duffing_and_stops_there():
     assert "separable" in text and "accepted: separable" in text
 
 
-def test_select_first_order_runs_inner_and_middle_and_says_the_outer_loop_was_not_run():
+def _with_scaled_curves(model, factors):
+    """A copy of a fitted model whose named curves are multiplied by the given factors."""
+    wrong = copy.copy(model)
+    wrong.curves = dict(model.curves)
+    for name, factor in factors.items():
+        c = model.curves[name]
+        wrong.curves[name] = _Curve(lambda z, c=c, factor=factor: factor * c(z), c.domain)
+    return wrong
+
+
+def test_select_first_order_runs_all_three_loops_and_the_outer_loop_catches_a_wrong_resistance():
     rec = corrupt(get_system("first-order").simulate(), 25, seed=0)
     report = select_family([rec], ["first-order"], method="poly-cc", n_members=3)  # one record: two halves
     row = report.rows[0]
     assert report.settings["split_one_record"] and report.accepted == "first-order"
     assert row["inner"]["statistic"] < INNER_FACTOR and row["middle"]["statistic"] < MIDDLE_THRESHOLD
-    assert row["outer"]["passed"] is None and row["outer"]["statistic"] == "n/a"
-    assert row["outer"]["figures"]["note"].startswith("not run: the outer loop simulates one-state templates")
+    # each half's model, run from the other half's initial x under its forcing, never separates
+    outer = row["outer"]
+    assert outer["passed"] is True and outer["statistic"] == 1.0
+    assert outer["figures"]["statuses"] == ["ok", "ok"]
+    assert max(outer["figures"]["normalised_rmse"]) < 0.05  # measured 0.010 and 0.023
+    # the same loop on models whose resistance f2(x) is halved: separated within 10 % of the record
+    halves = split_record(rec)
+    est = CharacteristicCurves(family="first-order", method="poly-cc", random_state=0)
+    wrong = [Ensemble(point=_with_scaled_curves(est.fit(h).model_, {"f2": 0.5}), members=[], record=h,
+                      kind="seeds") for h in halves]
+    bad = outer_loop(wrong)
+    assert not bad.passed and bad.statistic < 0.1  # measured 0.069
+    assert max(bad.figures["separation_fraction"]) < 0.1
+
+
+def test_outer_loop_two_dof_follows_held_out_records_and_rejects_a_decoupled_model():
+    starts = [{}, {"x10": -0.4, "x20": 0.6, "A1": 0.8, "A2": 0.9}]  # other initial states and forcings
+    recs = [corrupt_forces(get_system("two-dof", **kw).simulate(t_end=50.0, n_points=1000), 25, seed=k)
+            for k, kw in enumerate(starts)]
+    est = CharacteristicCurves(family="two-dof", method="poly-cc", random_state=0)
+    models = [est.fit(r).model_ for r in recs]
+    good = outer_loop([Ensemble(point=m, members=[], record=r, kind="seeds") for m, r in zip(models, recs)])
+    assert good.passed and good.statistic == 1.0  # both states within 10 % of their range throughout
+    assert good.figures["statuses"] == ["ok", "ok"]
+    assert max(good.figures["normalised_rmse"]) < 0.1  # measured 0.036 and 0.061 (worst state)
+    # without the coupling spring (f2 = f4 = 0) the masses move independently: separated at once
+    decoupled = outer_loop([Ensemble(point=_with_scaled_curves(m, {"f2": 0.0, "f4": 0.0}), members=[], record=r,
+                                     kind="seeds") for m, r in zip(models, recs)])
+    assert not decoupled.passed and decoupled.statistic < 0.05  # measured 0.015
+    assert min(decoupled.figures["normalised_rmse"]) > 1.0
 
 
 def test_select_refuses_an_unknown_family_before_fitting():

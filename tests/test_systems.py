@@ -235,7 +235,11 @@ def test_sticking_mask_needs_velocity(stick_paper):
 
 # ---------------------------------------------------------------------- registry
 def test_registry():
-    assert SYSTEM_NAMES == ("duffing", "stick-slip")
+    assert SYSTEM_NAMES == ("duffing", "stick-slip", "van-der-pol", "first-order", "two-dof")
+    # every registered name builds its system, and each names the family that describes it
+    families = {name: get_system(name).family for name in SYSTEM_NAMES}
+    assert families == {"duffing": "separable", "stick-slip": "separable", "van-der-pol": "position-damping",
+                        "first-order": "first-order", "two-dof": "two-dof"}
     assert isinstance(get_system("duffing"), Duffing)
     assert isinstance(get_system("stick_slip"), StickSlip)
     assert isinstance(get_system("Stick-Slip", "smooth"), BenchmarkSystem)
@@ -244,8 +248,23 @@ def test_registry():
 
 
 def test_registry_unknown_name():
-    with pytest.raises(ConfigError, match=r"unknown system 'vanderpol'; choose one of 'duffing', 'stick-slip'"):
+    with pytest.raises(ConfigError, match=r"unknown system 'vanderpol'; choose one of 'duffing', 'stick-slip', "
+                                          r"'van-der-pol', 'first-order', 'two-dof'$"):
         get_system("vanderpol")
+
+
+def test_cli_simulate_offers_every_registered_system(tmp_path, capsys):
+    from charcurves.cli import main
+
+    assert main(["simulate", "vanderpol", "--out", str(tmp_path / "x.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err
+    assert "invalid choice: 'vanderpol' (choose from 'duffing', 'stick-slip', 'van-der-pol', 'first-order', " \
+           "'two-dof')" in err
+    # the names the CLI offers are the registry's, so a newly registered system is simulable at once
+    assert main(["simulate", "first-order", "--out", str(tmp_path / "fo.csv"), "--n-points", "50", "--t-end",
+                 "5"]) == 0
+    assert (tmp_path / "fo.csv").read_text().splitlines()[0] == "t,x,v,a,F"
 
 
 def test_registry_unknown_variant():

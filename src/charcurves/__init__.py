@@ -19,6 +19,7 @@ logging.getLogger(__name__).addHandler(logging.NullHandler())
 # public name -> module that defines it (loaded on first attribute access)
 _LAZY = {
     "Trajectory": "charcurves.data",
+    "MultiTrajectory": "charcurves.data",
     "corrupt": "charcurves.data",
     "add_noise": "charcurves.data",
     "estimate_derivatives": "charcurves.data",

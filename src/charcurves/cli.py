@@ -34,6 +34,7 @@ def _rows(text: str) -> slice:
 
 def _build_parser() -> argparse.ArgumentParser:
     from .fitting._estimator import METHODS
+    from .systems import SYSTEM_NAMES
 
     p = _Parser(prog="charcurves", description="Equation discovery with characteristic curves.")
     p.add_argument("--version", action="version", version=f"charcurves {_version()}")
@@ -41,7 +42,7 @@ def _build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("simulate", help="simulate a benchmark system to a CSV file (t,x,v,a,F; two-dof: "
                                         "t,x1,x2,v1,a1,v2,a2,F1,F2)")
-    s.add_argument("system", choices=["duffing", "stick-slip", "van-der-pol", "first-order", "two-dof"])
+    s.add_argument("system", choices=SYSTEM_NAMES)
     s.add_argument("--out", required=True, help="output CSV file")
     s.add_argument("--snr", type=float, default=None, help="noise level in dB (default: no noise)")
     s.add_argument("--noise-on", choices=["force", "state"], default="force")
@@ -86,7 +87,8 @@ def _build_parser() -> argparse.ArgumentParser:
     f.add_argument("--force-col", default="F")
     f.add_argument("--sample-rate", type=float, default=None, help="Hz, when the file has no time column")
     f.add_argument("--rows", type=_rows, default=None, help="START:STOP rows to use")
-    f.add_argument("--truth", default=None, help="benchmark system (duffing, stick-slip) to compare the curves with")
+    f.add_argument("--truth", default=None,
+                   help=f"benchmark system ({', '.join(SYSTEM_NAMES)}) to compare the curves with")
     f.add_argument("--truth-variant", default="paper")
     f.add_argument("--threads", type=int, default=None, help="torch threads (default: 1 per process)")
     f.add_argument("--device", default="cpu")
@@ -144,15 +146,19 @@ def _build_parser() -> argparse.ArgumentParser:
     b = sub.add_parser("benchmark", help="run the paper's study (sweeps, tables, figures) into a report")
     b.add_argument("--out", required=True, help="output directory (results.sqlite there makes reruns resume)")
     b.add_argument("--systems", default="duffing,stick-slip", help="comma-separated: duffing,stick-slip")
-    b.add_argument("--methods", default=None, help=f"comma-separated methods (default: all twelve: {', '.join(METHODS)})")
-    b.add_argument("--snr", default=None, help="comma-separated SNR levels in dB (default 40,20,0; --full: 40..-20)")
-    b.add_argument("--realizations", type=int, default=None, help="noise realisations per level (default 2; --full: 10)")
+    b.add_argument("--methods", default=None,
+                   help=f"comma-separated methods (default: all twelve: {', '.join(METHODS)})")
+    b.add_argument("--snr", default=None,
+                   help="comma-separated SNR levels in dB (default 40,20,0; --full: 40..-20)")
+    b.add_argument("--realizations", type=int, default=None,
+                   help="noise realisations per level (default 2; --full: 10)")
     b.add_argument("--full", action="store_true", help="the paper's grid: 61 SNR levels x 10 realisations")
     b.add_argument("--preset", default="default", help="training preset of the neural methods: default or paper")
     b.add_argument("--executor", choices=["local", "ray"], default="local")
     b.add_argument("--workers", type=int, default=None, help="parallel workers (default: the CPU count)")
     b.add_argument("--forward-cases", type=int, default=None, help="validation cases per model (default 2; --full: 10)")
     b.add_argument("--skip", default="", help="side studies to leave out: forward,lyapunov,miw,sensitivity,appendix-f")
+    b.add_argument("--retry-failed", action="store_true", help="also rerun jobs stored as failed")
     b.add_argument("--quiet", action="store_true")
     return p
 
@@ -465,7 +471,8 @@ def _cmd_benchmark(a) -> int:
         raise _UsageError(f"--forward-cases must be 0 or more, got {a.forward_cases}")
     res = run_benchmark(a.out, systems=systems, methods=methods, snr_db=snr, realizations=a.realizations,
                         full=a.full, preset=a.preset, executor=a.executor, workers=a.workers,
-                        forward_cases=a.forward_cases, skip=skip, progress=not a.quiet)
+                        forward_cases=a.forward_cases, skip=skip, progress=not a.quiet,
+                        retry_failed=a.retry_failed)
     _say(f"benchmark: {res}", a.quiet)
     return 0
 

@@ -1,7 +1,9 @@
-"""Measured data: trajectories, noise models and differentiators."""
+"""Measured data: trajectories (one degree of freedom, or several: MultiTrajectory), noise models
+and differentiators."""
 
 from ._trajectory import MIN_SAMPLES as MIN_SAMPLES
 from ._trajectory import Trajectory as Trajectory
+from ._trajectory import MultiTrajectory as MultiTrajectory
 from ._noise import add_noise as add_noise
 from ._noise import corrupt as corrupt
 from ._noise import noise_sigma as noise_sigma

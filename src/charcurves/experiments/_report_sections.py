@@ -61,20 +61,31 @@ def _snr_text(s: float) -> str:
 
 
 def write_all(rep, *, df, ctx, extras, out_dir: str, timing: Mapping[str, float]) -> None:
-    _overview(rep, df, ctx, timing, out_dir)
-    _status(rep, df)
-    _table1(rep, extras)
     fits = {how: a_fit_table(df, how) for how in ("mean", "rms")} if len(df) else {"mean": {}, "rms": {}}
-    _table2(rep, df, fits)
-    _table3(rep, df, fits)
-    _rmse_figures(rep, df, fits["mean"])
-    _tsep(rep, df, extras)
-    _forward_panels(rep, df, ctx)
-    _phase_space(rep, df, ctx, extras)
-    _performance(rep, df, fits["mean"])
-    _appendix_f(rep, out_dir)
-    _sensitivity(rep, extras)
-    _cost(rep, df)
+    sections = [
+        ("What was run", lambda: _overview(rep, df, ctx, timing, out_dir)),
+        ("Run status", lambda: _status(rep, df)),
+        ("Table 1", lambda: _table1(rep, extras)),
+        ("Table 2", lambda: _table2(rep, df, fits)),
+        ("Table 3", lambda: _table3(rep, df, fits)),
+        ("RMSE figures", lambda: _rmse_figures(rep, df, fits["mean"])),
+        ("Separation time", lambda: _tsep(rep, df, extras)),
+        ("Forward integrations", lambda: _forward_panels(rep, df, ctx)),
+        ("Phase space", lambda: _phase_space(rep, df, ctx, extras)),
+        ("Performance", lambda: _performance(rep, df, fits["mean"])),
+        ("Appendix F", lambda: _appendix_f(rep, out_dir)),
+        ("Appendix C", lambda: _sensitivity(rep, extras)),
+        ("Appendix G", lambda: _cost(rep, df)),
+    ]
+    for name, build in sections:
+        try:
+            build()
+        except Exception as exc:  # noqa: BLE001 - one broken section must not cost the whole report
+            import matplotlib.pyplot as plt
+
+            plt.close("all")
+            rep.paragraph(f"The section '{name}' could not be built ({type(exc).__name__}: {exc}); the data are "
+                          "in results.csv and the stores. Please report this.")
 
 
 # ---------------------------------------------------------------------- overview
@@ -101,7 +112,7 @@ def _overview(rep, df, ctx, timing, out_dir) -> None:
             f"This run used {kind}: {s['forward_cases']} validation cases per model (the paper: 10), MIW "
             f"ensembles of {s['miw_seeds']} seeds and {s['miw_realizations']} realisations (the paper: 100 and 10), "
             f"the Lyapunov exponent over {s['lyapunov_time']:g} time units, per-case simulation budget "
-            f"{s['case_time_budget']:g} s and per-job budget {s['job_time_budget']:g} s. Symbolic regression "
+            f"{s['case_time_budget']:g} s (a case over it counts as failed). Symbolic regression "
             f"(SR, SR-CC, post-SR) uses Operon with one population of 300 and "
             f"{s.get('sr_generations') or 40} generations (library default 40; the paper: PySR, 10 x 100, 200 "
             "iterations). Appendix F uses "
@@ -445,7 +456,7 @@ def _appendix_f(rep, out_dir: str) -> None:
             if snr not in shown:
                 continue
             k = next((k for k, s in enumerate(paper.APPENDIX_F_SNR) if abs(s - snr) < 1e-6), None)
-            i2 = np.flatnonzero(np.isclose(eta2, eta))
+            i2 = np.flatnonzero(np.isclose(eta2, eta1[i]))
             rows.append([system, preset, method, _snr_text(snr), e1[i],
                          pv[0][k] if pv and k is not None else None, e2[i2[0]] if i2.size else None,
                          pv[1][k] if pv and k is not None else None])

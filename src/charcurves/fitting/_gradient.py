@@ -58,6 +58,10 @@ class BatchedProblem:
     # model (K,), which Bayesian regularisation updates during Levenberg-Marquardt
     weight_decay: float | torch.Tensor = 0.0
     bayesian: bool = False
+    # one decay for all network weights of a model, or one per curve (MacKay's hyperparameter
+    # groups: a curve the data make nearly linear can be damped hard while another stays flexible);
+    # with per-curve groups weight_decay is (K, n_curves)
+    decay_groups: str = "shared"
 
     def __post_init__(self) -> None:
         self.offsets = []
@@ -76,6 +80,15 @@ class BatchedProblem:
             decay[self.offsets[i] + sl.start : self.offsets[i] + sl.stop] = True
         use_decay = self.bayesian or (float(torch.as_tensor(self.weight_decay).max()) > 0)
         self.decay_index = torch.nonzero(decay).flatten().to(self.y.device) if use_decay else None
+        if self.decay_groups not in ("shared", "per-curve"):
+            raise ValueError(f"decay_groups must be 'shared' or 'per-curve', got {self.decay_groups!r}")
+        group = torch.zeros(o, dtype=torch.long)
+        if self.decay_groups == "per-curve":
+            for i, term in enumerate(self.terms):
+                sl = term.curve.slices()["mlp"]
+                group[self.offsets[i] + sl.start : self.offsets[i] + sl.stop] = i
+        self.n_decay_groups = len(self.terms) if self.decay_groups == "per-curve" else 1
+        self.decay_group = group[decay].to(self.y.device) if use_decay else None  # (m,) group of each decayed weight
         self.set_weight_decay(self.weight_decay)
         self.n_used = (self.weights > 0).sum(dim=1).to(self.y.dtype)
         self.gamma = None
@@ -93,7 +106,7 @@ class BatchedProblem:
         wd = wd[rows] if torch.is_tensor(wd) and wd.dim() else wd
         return BatchedProblem(terms, self.y[rows], self.F[rows], self.weights[rows], free_gain=self.free_gain,
                               gain=self.gain, gain_on=self.gain_on, bias=self.bias, lambda_sym=self.lambda_sym, weight_decay=wd,
-                              bayesian=self.bayesian)
+                              bayesian=self.bayesian, decay_groups=self.decay_groups)
 
     def refresh_decay_rows(self, theta: torch.Tensor, r: torch.Tensor, J: torch.Tensor) -> None:
         """Update, in place, the residual and Jacobian rows of the weight decay (the last rows)."""
@@ -105,9 +118,21 @@ class BatchedProblem:
         J[:, rows, idx] = sq.expand(-1, m)
 
     def set_weight_decay(self, wd) -> None:
+        """A float, one value per model ``(K,)``, or one per model and decay group ``(K, G)``."""
         wd = torch.as_tensor(wd, dtype=self.y.dtype, device=self.y.device)
         self.weight_decay = wd
-        self._sqrt_wd = torch.sqrt(wd.clamp_min(0)).reshape(-1, 1) if wd.dim() else torch.sqrt(wd.clamp_min(0))
+        sq = torch.sqrt(wd.clamp_min(0))
+        if wd.dim() == 2 and self.decay_group is not None:
+            self._sqrt_wd = sq[:, self.decay_group]  # (K, m): each decayed weight's own group
+        else:
+            self._sqrt_wd = sq.reshape(-1, 1) if wd.dim() else sq
+
+    def decay_per_group(self, K: int) -> torch.Tensor:
+        """The decay as ``(K, G)``."""
+        wd = torch.as_tensor(self.weight_decay, dtype=self.y.dtype, device=self.y.device)
+        if wd.dim() == 2:
+            return wd
+        return wd.reshape(-1, 1).expand(K, self.n_decay_groups) if wd.dim() else wd.expand(K, self.n_decay_groups)
 
     @property
     def K(self) -> int:
@@ -187,7 +212,8 @@ class BatchedProblem:
         if self.decay_index is not None:
             m = self.decay_index.numel()
             Jd = theta.new_zeros(K, m, self.n_params)
-            Jd[:, torch.arange(m, device=theta.device), self.decay_index] = self._sqrt_wd.expand(K, 1) if self._sqrt_wd.dim() else self._sqrt_wd
+            Jd[:, torch.arange(m, device=theta.device), self.decay_index] = (
+                self._sqrt_wd.expand(K, m) if self._sqrt_wd.dim() else self._sqrt_wd)
             r.append(self._sqrt_wd * theta[:, self.decay_index])
             J.append(Jd)
         return torch.cat(r, dim=1), torch.cat(J, dim=1)
@@ -261,32 +287,37 @@ def _evidence_update(problem, theta, JtJ, r):
     N = problem.y.shape[1]
     n_used = problem.n_used
     idx = problem.decay_index
-    m = idx.numel()
-    lam = torch.as_tensor(problem.weight_decay, dtype=theta.dtype, device=theta.device).expand(K)
-    mask = torch.zeros(P, dtype=theta.dtype, device=theta.device)
-    mask[idx] = 1.0
+    G = problem.n_decay_groups
+    lam = problem.decay_per_group(K).to(theta.dtype)  # (K, G)
+    masks = torch.zeros(G, P, dtype=theta.dtype, device=theta.device)
+    masks[problem.decay_group, idx] = 1.0
+    m_g = masks.sum(1)  # (G,) weights per group
+    lam_param = lam @ masks  # (K, P)
     # data part of J^T J (in raw units): remove the decay rows' lambda * I_w, undo the 1/sqrt(N) scaling
-    JtJ_data = (JtJ - torch.diag_embed(lam.view(K, 1) * mask)) * n_used.view(K, 1, 1)
+    JtJ_data = (JtJ - torch.diag_embed(lam_param)) * n_used.view(K, 1, 1)
     E_D = r[:, :N].pow(2).sum(1) * n_used
-    E_W = theta[:, idx].pow(2).sum(1).clamp_min(1e-12)
-    gamma_prev = problem.gamma if problem.gamma is not None else torch.full((K,), float(m), dtype=theta.dtype,
-                                                                                        device=theta.device)
-    beta = ((n_used - gamma_prev) / (2 * E_D)).clamp_min(1e-12)
-    alpha = lam * beta * n_used
-    H = 2 * beta.view(K, 1, 1) * JtJ_data + torch.diag_embed(2 * alpha.view(K, 1) * mask + 1e-10)
+    E_W = (theta.pow(2) @ masks.T).clamp_min(1e-12)  # (K, G)
+    gamma_prev = problem.gamma if problem.gamma is not None else m_g.expand(K, G)
+    beta = ((n_used - gamma_prev.sum(1)) / (2 * E_D)).clamp_min(1e-12)
+    alpha = lam * (beta * n_used).view(K, 1)  # (K, G)
+    H = 2 * beta.view(K, 1, 1) * JtJ_data + torch.diag_embed(2 * (alpha @ masks) + 1e-10)
     Hinv_diag = torch.diagonal(torch.cholesky_inverse(torch.linalg.cholesky_ex(H)[0]), dim1=1, dim2=2)
-    tr_w = (Hinv_diag * mask).sum(1)
-    gamma = (m - 2 * alpha * tr_w).clamp(1.0, float(m))
+    tr_w = Hinv_diag @ masks.T  # (K, G)
+    gamma = torch.minimum((m_g - 2 * alpha * tr_w).clamp_min(1.0), m_g)
     problem.gamma = gamma
     alpha_new = gamma / (2 * E_W)
-    beta_new = ((n_used - gamma) / (2 * E_D)).clamp_min(1e-12)
-    return alpha_new / (beta_new * n_used), gamma
+    beta_new = ((n_used - gamma.sum(1)) / (2 * E_D)).clamp_min(1e-12)
+    lam_new = alpha_new / (beta_new * n_used).view(K, 1)
+    if problem.weight_decay.dim() < 2 and G == 1:
+        lam_new = lam_new[:, 0]  # keep the caller's (K,) layout
+    return lam_new, gamma.sum(1)
 
 
 def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress, holder):
     K, P = theta.shape
     if problem.bayesian:
-        problem.set_weight_decay(torch.full((K,), 1e-8, dtype=theta.dtype, device=theta.device))
+        shape = (K,) if problem.n_decay_groups == 1 else (K, problem.n_decay_groups)
+        problem.set_weight_decay(torch.full(shape, 1e-8, dtype=theta.dtype, device=theta.device))
     r, J = problem.residuals_jacobian(theta)
     cost = r.pow(2).sum(1)
     mu = torch.full((K,), 1e-3, dtype=theta.dtype, device=theta.device)
@@ -323,8 +354,9 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
             # re-estimate the decay of the models that moved; the objective changes with it,
             # so the decay rows of the residuals and Jacobian are refreshed under the new value
             lam_new, gamma = _evidence_update(problem, theta, J.transpose(1, 2) @ J, r)
-            lam_old = torch.as_tensor(problem.weight_decay, device=theta.device).expand(K)
-            problem.set_weight_decay(torch.where(accept & active, lam_new, lam_old))
+            lam_old = torch.as_tensor(problem.weight_decay, device=theta.device).expand_as(lam_new)
+            moved = (accept & active).view(K, *([1] * (lam_new.dim() - 1)))
+            problem.set_weight_decay(torch.where(moved, lam_new, lam_old))
             problem.refresh_decay_rows(theta, r, J)  # only the decay rows depend on the decay
             cost = r.pow(2).sum(1)
             log.effective_parameters = gamma.tolist()

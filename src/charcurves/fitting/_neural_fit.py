@@ -126,7 +126,8 @@ def fit_neural(
     bias = all(curves[nm].pinned_at_zero for nm in names)
     problem = BatchedProblem(terms, y, F, w, free_gain=template.free_gain, gain=template.gain,
                              gain_on=template.gain_on, bias=bias,
-                             lambda_sym=preset.lambda_sym, weight_decay=weight_decay, bayesian=preset.bayesian)
+                             lambda_sym=preset.lambda_sym, weight_decay=weight_decay, bayesian=preset.bayesian,
+                             decay_groups=preset.decay_groups)
 
     # ---------------------------------------------------------------- initialisation (per model seed)
     thetas = []
@@ -158,8 +159,7 @@ def fit_neural(
         log = _merge_logs([lg for _, _, lg in logs])
         with torch.no_grad():
             total_loss = torch.cat([sub.loss(theta[s:s + sub.K]) for s, sub, _ in logs]).double().cpu().numpy()
-            decay = torch.cat([torch.as_tensor(sub.weight_decay, dtype=theta.dtype, device=theta.device).expand(sub.K)
-                               for _, sub, _ in logs])
+            decay = torch.cat([sub.decay_per_group(sub.K).to(theta.dtype) for _, sub, _ in logs])  # (KR, G)
     elapsed = time.perf_counter() - t_start
     theta = theta.double().cpu()
     # a jump whose tanh is saturated at every fitted sample has a width the data cannot see:
@@ -219,7 +219,7 @@ def fit_neural(
             "total_loss": float(total_loss[k * R + best] * s_out**2),
             "train_seconds": elapsed / K,
             "batch_size": K,
-            "weight_decay": float(decay[k * R + best]),
+            "weight_decay": [float(d) for d in decay[k * R + best]],
             "effective_parameters": (log.effective_parameters[k * R + best] if log.effective_parameters else None),
         }
         if log.interrupted:  # say what this record's own chunk did: finished, interrupted or never trained
@@ -359,19 +359,32 @@ def _sharpen_unresolved_jumps(problem, theta, saturation: float = 10.0):
     return flags
 
 
+#: Tikhonov guard of the even curves' output-layer warm start, relative to each column's norm
+#: (random hidden features can be nearly collinear; unguarded, the start can have weights so
+#: large that the evidence update meets a singular Hessian)
+_EVEN_WARM_RIDGE = 1e-3
+
+
 def _warm_start(problem, theta0):
-    """Least squares for the parts that enter linearly (linear terms, jump heights, gain, constant)."""
+    """Least squares for the parts that enter linearly (linear terms, jump heights, gain, constant,
+    and the output layer of exact even curves, which have no linear term: see curves/_neural.py)."""
     import torch
 
     from ..curves._neural import jump_log_eps
 
     with torch.no_grad():
         N = problem.y.shape[1]
-        cols, idx = [], []
+        cols, idx, guarded = [], [], []
         for i, term in enumerate(problem.terms):
             sl = term.curve.slices()
             o = problem.offsets[i]
             m = term.multiplier
+            if term.curve.exact_symmetry == "even":
+                feats, where = term.curve.output_layer(problem.block(theta0, i), term.u, term.u_both)
+                for j in range(feats.shape[2]):
+                    guarded.append(len(cols))
+                    cols.append(feats[:, :, j] if m is None else feats[:, :, j] * m)
+                    idx.append(o + where.start + j)
             if "linear" in sl:
                 cols.append(term.u if m is None else term.u * m)
                 idx.append(o + sl["linear"].start)
@@ -393,6 +406,13 @@ def _warm_start(problem, theta0):
             theta[:, j] = 0.0
         base = problem.residuals(theta)[:, :N]  # weighted residual of the rest
         A = torch.stack(cols, dim=2) * problem.weights.unsqueeze(-1)
-        sol = torch.linalg.lstsq(A, -base.unsqueeze(-1)).solution.squeeze(-1)
+        target = -base
+        if guarded:
+            rows = A.new_zeros(A.shape[0], len(guarded), A.shape[2])
+            for r, c in enumerate(guarded):
+                rows[:, r, c] = _EVEN_WARM_RIDGE * A[:, :, c].norm(dim=1)
+            A = torch.cat([A, rows], dim=1)
+            target = torch.cat([target, target.new_zeros(target.shape[0], len(guarded))], dim=1)
+        sol = torch.linalg.lstsq(A, target.unsqueeze(-1)).solution.squeeze(-1)
         theta[:, idx] = sol.to(theta.dtype)
         return theta

@@ -6,7 +6,8 @@
   must agree within their uncertainty; a wrong family deforms its curves differently for each
   trajectory ("structural compensation");
 * **outer**: each trajectory's model, integrated forward from another trajectory's initial state
-  under that trajectory's forcing, must follow it for a while (separation time).
+  under that trajectory's forcing, must follow it for a while (separation time); every family
+  (first-order, position-damping, two-dof, user equations) is integrated from its template.
 
 :func:`select_family` runs the loops on a hierarchy of candidate families, simplest first, and
 accepts the first family that passes all three.
@@ -21,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import ConfigError, DataError
+from .._errors import ConfigError, DataError, SimulationError
 
 __all__ = ["NoiseFloor", "noise_floor", "inner_loop", "middle_loop", "outer_loop", "select_family",
            "SelectionReport", "LoopResult", "split_record", "INNER_FACTOR", "MIDDLE_THRESHOLD",
@@ -220,90 +221,144 @@ def _smooth(y: np.ndarray, window: int = 11, order: int = 3) -> np.ndarray:
     return savgol_filter(np.asarray(y, dtype=float), window, order) if len(y) > window else np.asarray(y)
 
 
+def _record_columns(record, states: Sequence[str], forces: Sequence[str]):
+    """Displacements, velocities (None where the record has none) and forcings of a record, by the
+    template's names: ``x``/``F`` of a Trajectory, ``x1, x2``/``F1, F2`` of a MultiTrajectory."""
+    if hasattr(record, "states"):
+        vel = record.velocities or {}
+        return ({s: np.asarray(record.states[s], dtype=float) for s in states},
+                {s: (np.asarray(vel[s], dtype=float) if s in vel else None) for s in states},
+                {f: np.asarray(record.forces[f], dtype=float) for f in forces})
+    v = None if record.v is None else np.asarray(record.v, dtype=float)
+    return ({s: np.asarray(record.x, dtype=float) for s in states}, {s: v for s in states},
+            {f: np.asarray(record.F, dtype=float) for f in forces})
+
+
+def _expanded(lo: float, hi: float) -> tuple[float, float]:
+    """A span three times as wide as [lo, hi], centred on it."""
+    return lo - (hi - lo), hi + (hi - lo)
+
+
+#: a forward run that needs more right-hand-side evaluations than this per sample of the record
+#: grinds at a singular point of the model (a coefficient curve such as the first-order f2(x)
+#: crossing 0) and is stopped there; a healthy run needs a few per sample
+MAX_EVALUATIONS_PER_SAMPLE = 200
+
+
+class _RunGuard:
+    """Ends a forward run of a general template early, through the simulator's own stop (which
+    keeps the samples before it): when a curve argument leaves three times its training range
+    ("left_box") or the run grinds (``max_calls`` right-hand-side evaluations, "stalled").
+    Fires once: the simulator's rerun up to the stop then completes."""
+
+    def __init__(self, max_calls: int):
+        self.calls, self.max_calls, self.t, self.armed = 0, int(max_calls), 0.0, True
+
+    def _stop(self, status: str, message: str):
+        from ..simulate._families import _Stop
+
+        self.armed = False
+        raise _Stop(status, message, self.t)
+
+    def tick(self, t: float) -> None:
+        self.t = float(t)
+        self.calls += 1
+        if self.armed and self.calls > self.max_calls:
+            self._stop("stalled", f"more than {self.max_calls} right-hand-side evaluations (a singular model?)")
+
+    def left(self, name: str) -> None:
+        if self.armed:
+            self._stop("left_box", f"the argument of {name} left three times its training range")
+
+
+class _TabulatedCurve:
+    """A fitted curve evaluated by linear interpolation on a fine grid over three times its
+    training range (a network call per right-hand-side evaluation would dominate the run time;
+    the interpolation error on 4001 points is far below the tolerances); beyond it the run is
+    stopped by ``guard``, or the curve is evaluated exactly."""
+
+    def __init__(self, name: str, curve, guard: _RunGuard, n: int = 4001):
+        lo, hi = (float(v) for v in curve.domain)
+        if not hi > lo:
+            lo, hi = lo - 1.0, hi + 1.0
+        self.name, self.curve, self.guard = name, curve, guard
+        self.z = np.linspace(*_expanded(lo, hi), n)
+        self.y = np.asarray(curve(self.z), dtype=float)
+        self.domain = curve.domain
+
+    def __call__(self, z):
+        z = np.asarray(z, dtype=float)
+        out = np.interp(z, self.z, self.y)
+        outside = (z < self.z[0]) | (z > self.z[-1])
+        if outside.any():
+            self.guard.left(self.name)
+            out[outside] = np.asarray(self.curve(z[outside]), dtype=float)
+        return out
+
+
 def _forward(model, t, x0, v0, forcing, box, time_budget):
-    """Forward run of a fitted second-order model: simulate_model for the separable family,
-    otherwise LSODA on x'' solved from the template (explicitly for position-damping, from the
-    residual for other one-state templates, which is slower)."""
+    """Forward run of a fitted model from ``x0, v0`` (dicts by state) under ``forcing`` (dict of
+    callables by forcing column). Returns times, positions ``(n, S)`` and a status.
+
+    The separable family runs through :func:`charcurves.simulate.simulate_model`; every other
+    template (first-order, position-damping, two-dof, user equations) through
+    :func:`charcurves.simulate._families.simulate_template_model` on tabulated curves. A run that
+    leaves ``box`` (per state, on x and x') or three times a curve argument's training range ends
+    there with status "left_box"; one that grinds at a singular point ends with "stalled".
+    """
+    import copy
+
     family = getattr(model.template, "family", "")
     if family == "separable":
         from ..simulate import simulate_model
 
-        res = simulate_model(model, t, x0, v0, forcing, box=box, time_budget=time_budget, rtol=1e-6, atol=1e-8)
-        return res.t, res.x, res.status
-    if family == "position-damping":
-        f1 = _tabulated(model.curves["f1"], box["x"])
-        f2 = _tabulated(model.curves["f2"], box["x"])
-        g, b = float(model.gain), float(model.offset)
+        res = simulate_model(model, t, x0["x"], v0["x"], forcing["F"], box={"x": box["x"]["x"], "v": box["x"]["v"]},
+                             time_budget=time_budget, rtol=1e-6, atol=1e-8)
+        return res.t, np.asarray(res.x, dtype=float).reshape(-1, 1), res.status
+    from ..simulate._families import simulate_template_model
 
-        def accel(tt: float, x: float, v: float, F: float) -> float:
-            return g * F - f1(x) * v - f2(x) - b
-    else:
-        accel = _acceleration_from_residual(model)
-    import time
-
-    from scipy.integrate import solve_ivp
-
-    deadline = time.monotonic() + time_budget
-    xb, vb = box["x"], box["v"]
-
-    class _Timeout(Exception):
-        pass
-
-    def rhs(tt, y):
-        if time.monotonic() > deadline:
-            raise _Timeout
-        return [y[1], accel(tt, float(y[0]), float(y[1]), float(forcing(tt)))]
-
-    # leaving the box ends the run where it happens (terminal events), keeping the samples before
-    events = [lambda tt, y: y[0] - xb[0], lambda tt, y: xb[1] - y[0],
-              lambda tt, y: y[1] - vb[0], lambda tt, y: vb[1] - y[1]]
-    for ev in events:
-        ev.terminal = True
-    try:
-        sol = solve_ivp(rhs, (t[0], t[-1]), [x0, v0], t_eval=t, method="LSODA", rtol=1e-6, atol=1e-8, events=events)
-    except _Timeout:
-        return t[:0], np.zeros(0), "timeout"
-    status = "ok" if sol.status == 0 else ("left_box" if sol.status == 1 else "solver_failed")
-    return sol.t, sol.y[0], status
-
-
-def _tabulated(curve, span, n: int = 4001):
-    """Scalar evaluation of a curve by linear interpolation on a fine grid over ``span`` (a
-    network call per right-hand-side evaluation would dominate the run time)."""
-    z = np.linspace(float(span[0]), float(span[1]), n)
-    y = np.asarray(curve(z), dtype=float)
-
-    def f(u: float) -> float:
-        return float(np.interp(u, z, y))
-
-    return f
-
-
-def _acceleration_from_residual(model):
-    """x'' of a one-state, one-equation template, from its residual (linear in x''): the residual
-    is evaluated at x'' = 0 and x'' = 1 in one two-sample record and solved for its zero."""
-    from ..data import Trajectory
-
-    probe = model.force_residual(Trajectory(t=[0.0, 1e-9], x=[0.1, 0.1], F=[0.0, 0.0], v=[0.1, 0.1], a=[0.0, 1.0]))
-    if np.ndim(probe) != 1 or not abs(float(probe[1] - probe[0])) > 0:
-        raise ConfigError(f"the outer loop simulates one-state templates with x'' in one equation; the "
-                          f"{model.template.family} family is not one")
-
-    def accel(t: float, x: float, v: float, F: float) -> float:
-        r = model.force_residual(Trajectory(t=[t, t + 1e-9], x=[x, x], F=[F, F], v=[v, v], a=[0.0, 1.0]))
-        return float(-r[0] / (r[1] - r[0]))
-
-    return accel
+    guard = _RunGuard(MAX_EVALUATIONS_PER_SAMPLE * len(t))
+    first = next(iter(forcing))
+    guarded = dict(forcing)
+    guarded[first] = lambda tt, f=forcing[first]: (guard.tick(tt), f(tt))[1]  # once per right-hand side
+    fast = copy.copy(model)
+    fast.curves = {name: _TabulatedCurve(name, c, guard) for name, c in model.curves.items()}
+    states = list(model.template.states)
+    res = simulate_template_model(fast, t, x0, {s: (v0[s] if v0[s] is not None else 0.0) for s in states}, guarded,
+                                  rtol=1e-6, atol=1e-8, time_budget=time_budget)
+    status = res.status
+    if len(res.t) == 0:  # stopped before the first sample (e.g. timeout, or diverged at once)
+        return res.t, np.zeros((0, len(states))), status
+    X = np.asarray(res.x, dtype=float).reshape(len(res.t), -1)
+    V = np.asarray(res.v, dtype=float).reshape(len(res.t), -1)
+    inside = np.ones(len(res.t), dtype=bool)
+    for k, s in enumerate(states):
+        for vals, (lo, hi) in ((X[:, k], box[s]["x"]), (V[:, k], box[s]["v"])):
+            inside &= (vals >= lo) & (vals <= hi)
+    if not inside.all():
+        n = int(np.argmin(inside))  # samples before the first one outside
+        return res.t[:n], X[:n], "left_box"
+    return res.t, X, status
 
 
 def outer_loop(ensembles: Sequence, *, fraction: float = OUTER_FRACTION, eps: float = SEPARATION_EPS,
                time_budget: float = 60.0) -> LoopResult:
     """Cross-prediction: the model of trajectory i run from trajectory j's initial state under
-    j's forcing (smoothed by Savitzky-Golay, window 11), for every i != j.
+    j's forcing (smoothed by Savitzky-Golay, window 11), for every i != j, in every family
+    (several states and forcing columns for two-dof; the initial x' is not used by first-order
+    templates).
 
-    The separation time is the first time with ``|x_model - x_j| > eps · range(x_j)``, relative
-    to the record's duration; the loop passes when its median over the pairs is at least
-    ``fraction``. A run that leaves a box of three times the training ranges separates there.
+    The separation time is the first time at which any state separates, ``|x_model - x_j| >
+    eps · range(x_j)`` (per state), relative to the record's duration; the loop passes when its
+    median over the pairs is at least ``fraction``. A run that leaves a box of three times the
+    training ranges (of each state and its velocity) separates there. ``normalised_rmse`` is
+    the worst state's trajectory RMSE over its standard deviation.
+
+    Raises
+    ------
+    SimulationError
+        For a template that cannot be integrated (no derivative of a state, or not one equation
+        per state).
     """
     from ..metrics import separation_time, trajectory_rmse
 
@@ -312,35 +367,44 @@ def outer_loop(ensembles: Sequence, *, fraction: float = OUTER_FRACTION, eps: fl
     rel, nrmse, statuses = [], [], []
     for i, ens_i in enumerate(ensembles):
         model = ens_i.point
+        template = model.template
+        states = list(getattr(template, "states", ("x",)))
+        forces = list(getattr(template, "forces", ("F",)))
+        xs_i, vs_i, _ = _record_columns(ens_i.record, states, forces)
         box = {}
-        for key, var in (("x", "x"), ("v", "v")):
-            vals = np.asarray(getattr(ens_i.record, var))
-            lo, hi = float(vals.min()), float(vals.max())
-            box[key] = (lo - (hi - lo), hi + (hi - lo))
+        for s in states:
+            box[s] = {"x": _expanded(float(xs_i[s].min()), float(xs_i[s].max())),
+                      "v": ((-math.inf, math.inf) if vs_i[s] is None
+                            else _expanded(float(vs_i[s].min()), float(vs_i[s].max())))}
         for j, ens_j in enumerate(ensembles):
             if i == j:
                 continue
             rec = ens_j.record
-            t = np.asarray(rec.t)
-            F = _smooth(np.asarray(rec.F))
-
-            def forcing(tt, t=t, F=F):
-                return float(np.interp(tt, t, F))
-
-            ts, xs, status = _forward(model, t, float(rec.x[0]), float(rec.v[0]), forcing, box, time_budget)
-            x_true = np.asarray(rec.x)
-            span = float(np.ptp(x_true))
-            if len(xs) < 2:
-                t_sep = t[0]
-            else:
-                t_sep, _ = separation_time(ts, xs, x_true[:len(xs)], eps=eps * span)
-                if status != "ok" and len(xs) < len(t):
-                    t_sep = min(t_sep, float(ts[-1]))
+            t = np.asarray(rec.t, dtype=float)
+            x_true, v_true, F_true = _record_columns(rec, states, forces)
+            forcing = {}
+            for f in forces:
+                Fs = _smooth(F_true[f])
+                forcing[f] = (lambda tt, t=t, Fs=Fs: float(np.interp(tt, t, Fs)))
+            x0 = {s: float(x_true[s][0]) for s in states}
+            v0 = {s: (None if v_true[s] is None else float(v_true[s][0])) for s in states}
+            ts, X, status = _forward(model, t, x0, v0, forcing, box, time_budget)
             statuses.append(status)
             if status == "timeout":  # a run cut short by the clock says nothing about the model
                 continue
+            if len(ts) < 2:
+                t_sep, worst = t[0], math.inf
+            else:
+                t_sep, worst = math.inf, 0.0
+                for k, s in enumerate(states):
+                    span = float(np.ptp(x_true[s]))
+                    t_k, _ = separation_time(ts, X[:, k], x_true[s][:len(ts)], eps=eps * span)
+                    t_sep = min(t_sep, t_k)
+                    worst = max(worst, trajectory_rmse(X[:, k], x_true[s]) / max(float(np.std(x_true[s])), 1e-300))
+                if status != "ok" and len(ts) < len(t):
+                    t_sep = min(t_sep, float(ts[-1]))
             rel.append((t_sep - t[0]) / (t[-1] - t[0]))
-            nrmse.append(trajectory_rmse(xs, x_true) / max(float(np.std(x_true)), 1e-300) if len(xs) else math.inf)
+            nrmse.append(worst)
     if not rel:
         return LoopResult("outer", False, math.nan, float(fraction),
                           {"statuses": statuses, "note": f"every forward run exceeded its time budget of "
@@ -481,7 +545,7 @@ def select_family(trajectories: Sequence, families: Sequence[str] = DEFAULT_FAMI
                 break
             try:
                 res = run()
-            except ConfigError as exc:  # e.g. no forward simulation for a first-order template
+            except (ConfigError, SimulationError) as exc:  # a user template that cannot be integrated
                 if name != "outer":
                     raise
                 row[name] = {"loop": name, "passed": None, "statistic": "n/a", "threshold": outer_fraction,

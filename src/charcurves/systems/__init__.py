@@ -19,17 +19,16 @@ from ._duffing import Duffing
 from ._stick_slip import StickSlip
 
 __all__ = ["BenchmarkSystem", "Duffing", "StickSlip", "VanDerPolDamping", "FirstOrderSystem", "TwoDOF",
-           "corrupt_forces", "get_system", "SYSTEM_NAMES", "ALL_SYSTEM_NAMES"]
+           "corrupt_forces", "get_system", "SYSTEM_NAMES"]
 
 from ._families import FirstOrderSystem, TwoDOF, VanDerPolDamping, corrupt_forces  # noqa: E402
 
 _REGISTRY: dict[str, type] = {"duffing": Duffing, "stick-slip": StickSlip, "van-der-pol": VanDerPolDamping,
                               "first-order": FirstOrderSystem, "two-dof": TwoDOF}
-#: The paper's separable benchmarks ("stick_slip" is accepted as an alias of "stick-slip").
-SYSTEM_NAMES = ("duffing", "stick-slip")
-#: Every name accepted by :func:`get_system`: the separable benchmarks and one system per other
-#: family (van-der-pol: position-damping, first-order, two-dof).
-ALL_SYSTEM_NAMES = tuple(_REGISTRY)
+#: Every name accepted by :func:`get_system`: the paper's separable benchmarks (duffing,
+#: stick-slip; "stick_slip" is accepted too) and one system per other family (van-der-pol:
+#: position-damping, first-order, two-dof). ``get_system(name).family`` tells which.
+SYSTEM_NAMES = tuple(_REGISTRY)
 
 
 def get_system(name: str, variant: str = "paper", **overrides: Any) -> BenchmarkSystem:
@@ -57,7 +56,7 @@ def get_system(name: str, variant: str = "paper", **overrides: Any) -> Benchmark
     key = str(name).strip().lower().replace("_", "-") if isinstance(name, str) else name
     cls = _REGISTRY.get(key) if isinstance(key, str) else None
     if cls is None:
-        raise ConfigError(f"unknown system {name!r}; choose one of {', '.join(map(repr, ALL_SYSTEM_NAMES))}")
+        raise ConfigError(f"unknown system {name!r}; choose one of {', '.join(map(repr, SYSTEM_NAMES))}")
     fields = [f for f in cls.__dataclass_fields__ if f != "variant"]
     unknown = sorted(set(overrides) - set(fields))
     if unknown:

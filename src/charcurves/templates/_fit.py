@@ -168,7 +168,7 @@ def fit_neural_template(records: Sequence, template: EquationTemplate, curves: d
     bias = E == 1 and bool(offsets)
     problem = BatchedProblem(terms, y, F, w, free_gain=template.free_gain, gain=template.gain,
                              gain_on=template.gain_on, bias=bias, lambda_sym=preset.lambda_sym, weight_decay=0.0,
-                             bayesian=preset.bayesian)
+                             bayesian=preset.bayesian, decay_groups=preset.decay_groups)
 
     thetas = []
     for seed in seeds:
