@@ -363,3 +363,8 @@ def test_duffing_20db_five_seed_means(duffing, method, limits):
         errs.append([curve_errors(model, system.true_curves())[k] for k in ("f1", "f2")])
     mean = np.mean(errs, axis=0)
     assert mean[0] <= limits[0] and mean[1] <= limits[1], mean
+
+
+def test_explicit_no_symmetry_with_a_sym_method_is_refused(duffing_20db):
+    with pytest.raises(ConfigError, match="imposes a parity prior .* use 'nn-cc' for no prior"):
+        cc.fit(duffing_20db, method="nn-cc+sym", symmetry="f1=none,f2=none")

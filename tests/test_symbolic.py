@@ -284,3 +284,30 @@ def test_acceptance_stick_slip_20db_post_sr():
     mu = [coef for b, coef in t1.items() if isinstance(b, sp.tanh)]
     assert len(mu) == 1
     assert c == pytest.approx(0.386, rel=0.10) and mu[0] == pytest.approx(0.801, rel=0.10)
+
+
+def test_post_sr_never_makes_sindy_jump_stand_in_worse():
+    """A SINDy polynomial standing in for the Coulomb jump has no simple closed form: the knee of
+    its front is a straight line (f1 RMSE vs truth 0.40 instead of 0.20, data loss x3). The data
+    guard keeps the distilled model within 5 % of the source's data loss and its curves no worse."""
+    import charcurves as cc
+    from charcurves.data._noise import corrupt
+    from charcurves.metrics import curve_errors
+    from charcurves.symbolic._distill import DATA_LOSS_TOLERANCE
+    from charcurves.systems import get_system
+
+    system = get_system("stick-slip")
+    traj = corrupt(system.simulate(40.0, 1000), 20.0, on="force", seed=0)
+    src = cc.fit(traj, method="sindy-cc+sym")
+    post = cc.fit(traj, method="sindy-cc+sym+post-sr")
+    truth = system.true_curves()
+    e_src, e_post = curve_errors(src, truth), curve_errors(post, truth)
+    assert e_src["f1"] == pytest.approx(0.203, abs=0.01)
+    assert e_post["f1"] <= 1.02 * e_src["f1"]  # was 0.40 (the knee 1.78 z)
+    assert e_post["f2"] <= 1.02 * e_src["f2"]
+    assert post.info["loss_before_distillation"] == pytest.approx(src.loss, rel=1e-6)
+    assert post.loss <= (1 + DATA_LOSS_TOLERANCE) * src.loss + 1e-12
+    guard = post.info["post_sr"]["f1"]["data_guard"]
+    assert guard.startswith("source curve kept") and "knee 1.77" in guard
+    z = src.curves["f1"].grid(200)
+    np.testing.assert_allclose(post.curves["f1"](z), src.curves["f1"](z), atol=1e-9)

@@ -495,7 +495,12 @@ def main(argv: list[str] | None = None) -> int:
     except CharCurvesError as exc:
         print(f"charcurves: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
+        from .experiments._sweep import SweepInterrupted
+
+        if isinstance(exc, SweepInterrupted):  # benchmark: finished rows are stored, a rerun resumes
+            print(f"charcurves: {exc}", file=sys.stderr)
+            return 130
         print("charcurves: interrupted before a model was trained; nothing was kept", file=sys.stderr)
         return 130
     except OSError as exc:  # writing outputs: a full disk, a read-only or vanished directory

@@ -45,6 +45,7 @@ __all__ = [
     "plan_units",
     "run_sweep",
     "EXECUTORS",
+    "SweepInterrupted",
 ]
 
 #: The paper's grid: 40, 39, ..., −20 dB (61 levels), 10 realisations each.
@@ -306,6 +307,60 @@ def plan_units(jobs: Sequence[Job], *, batch: str | int = "level", max_batch: in
     return units
 
 
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C (SIGINT) or SIGTERM stopped :func:`run_sweep`; every finished row is stored.
+
+    A ``KeyboardInterrupt``, so code that stops on Ctrl-C keeps doing so; ``str()`` is the one
+    line to show. Attributes: ``n_finished`` (rows stored by this run), ``n_todo``, ``store_path``.
+    """
+
+    def __init__(self, n_finished: int, n_todo: int, store_path: str, signal_name: str = "SIGINT"):
+        self.n_finished, self.n_todo, self.store_path = int(n_finished), int(n_todo), str(store_path)
+        super().__init__(f"sweep interrupted ({signal_name}): {self.n_finished} of {self.n_todo} jobs finished "
+                         f"and stored in {self.store_path}; rerun the same command to resume")
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+class _StopSignals:
+    """SIGINT/SIGTERM raise KeyboardInterrupt in the driver, but never while a row is being stored
+    (the signal is held until the row is committed and counted). Only in the main thread: signal
+    handlers cannot be installed elsewhere, and there the default Ctrl-C behaviour stays."""
+
+    def __init__(self):
+        self.received: str | None = None
+        self.deferring = False
+        self._old: dict = {}
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        import signal
+
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+    def _handle(self, signum, frame) -> None:
+        import signal
+
+        self.received = signal.Signals(signum).name
+        if not self.deferring:
+            raise KeyboardInterrupt
+
+    def check(self) -> None:
+        """Raise the interrupt held while a row was stored."""
+        if self.received is not None:
+            raise KeyboardInterrupt
+
+
 @dataclasses.dataclass
 class SweepReport:
     """What :func:`run_sweep` did."""
@@ -458,24 +513,34 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
                                         "n_jobs": len(jobs), "n_todo": len(todo)})
         bar = _Progress(len(todo), progress and bool(todo))
         counts = {"ok": 0, "failed": 0}
+        stop = _StopSignals()
 
         def consume(rows: list[dict]) -> None:
-            for row in rows:
-                store.write(row)
-                counts[row["status"]] += 1
-                if on_row is not None:
-                    on_row(row)
-            bar.update(len(rows), sum(r["status"] == "failed" for r in rows))
+            stop.deferring = True  # a signal now waits until the rows are committed and counted
+            try:
+                for row in rows:
+                    store.write(row)
+                    counts[row["status"]] += 1
+                    if on_row is not None:
+                        on_row(row)
+                bar.update(len(rows), sum(r["status"] == "failed" for r in rows))
+            finally:
+                stop.deferring = False
+            stop.check()
 
         try:
-            if executor == "ray":
-                _run_ray(units, settings, n_workers if workers is not None or address is None else None,
-                         address, ray_init_kwargs, consume)
-            elif min(n_workers, len(units)) <= 1:
-                for unit in units:
-                    consume(run_unit(unit, settings))
-            else:
-                _run_pool(units, settings, min(n_workers, len(units)), consume)
+            with stop:
+                if executor == "ray":
+                    _run_ray(units, settings, n_workers if workers is not None or address is None else None,
+                             address, ray_init_kwargs, consume)
+                elif min(n_workers, len(units)) <= 1:
+                    for unit in units:
+                        consume(run_unit(unit, settings))
+                else:
+                    _run_pool(units, settings, min(n_workers, len(units)), consume)
+        except KeyboardInterrupt:
+            raise SweepInterrupted(counts["ok"] + counts["failed"], len(todo), store.path,
+                                   stop.received or "SIGINT") from None
         finally:
             bar.close()
         return SweepReport(store.path, len(jobs), len(jobs) - len(todo), len(todo), counts["ok"], counts["failed"],
@@ -490,7 +555,7 @@ def _run_pool(units, settings: RunSettings, n: int, consume) -> None:
     from concurrent.futures import ProcessPoolExecutor, as_completed
     from concurrent.futures.process import BrokenProcessPool
 
-    pool = ProcessPoolExecutor(max_workers=n, mp_context=mp.get_context("spawn"), initializer=init_worker,
+    pool = ProcessPoolExecutor(max_workers=n, mp_context=mp.get_context("spawn"), initializer=_init_pool_worker,
                                initargs=(settings.torch_threads, os.getpid()))
     try:
         futures = {pool.submit(run_unit, unit, settings): unit for unit in units}
@@ -505,9 +570,35 @@ def _run_pool(units, settings: RunSettings, n: int, consume) -> None:
                 rows = failed_rows(unit, f"{type(exc).__name__}: {exc}")
             consume(rows)
     except BaseException:
-        pool.shutdown(wait=False, cancel_futures=True)
+        _stop_pool(pool)
         raise
     pool.shutdown(wait=True)
+
+
+def _init_pool_worker(threads: int | None, parent_pid: int) -> None:
+    """Pool workers ignore Ctrl-C: the terminal sends SIGINT to the whole process group, and a
+    worker's fit would catch it and return an interrupted model as a finished job. The driver
+    stops the workers itself (:func:`_stop_pool`)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    init_worker(threads, parent_pid)
+
+
+def _stop_pool(pool, grace: float = 3.0) -> None:
+    """Cancel queued units and end the workers now (SIGTERM, SIGKILL after ``grace`` seconds);
+    a unit a worker was running is lost and reruns on resume."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())  # no public handle before 3.14
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        if p.is_alive():
+            p.terminate()
+    deadline = time.monotonic() + grace
+    for p in procs:
+        p.join(max(0.0, deadline - time.monotonic()))
+        if p.is_alive():
+            p.kill()
+            p.join(1.0)
 
 
 def _run_ray(units, settings: RunSettings, num_cpus: int | None, address: str | None,
@@ -530,15 +621,27 @@ def _run_ray(units, settings: RunSettings, num_cpus: int | None, address: str | 
     try:
         task = ray.remote(num_cpus=1, max_retries=0)(run_unit)
         pending = {task.remote(unit, settings): unit for unit in units}
-        while pending:
-            ready, _ = ray.wait(list(pending), num_returns=1)
-            for ref in ready:
-                unit = pending.pop(ref)
+        try:
+            _drain_ray(ray, pending, consume)
+        except BaseException:
+            for ref in pending:  # queued and running tasks; a running one's row is lost and reruns on resume
                 try:
-                    rows = ray.get(ref)
-                except Exception as exc:  # noqa: BLE001 - a crashed worker or task
-                    rows = failed_rows(unit, f"Ray task failed ({type(exc).__name__}: {exc})"[:2000])
-                consume(rows)
+                    ray.cancel(ref, force=True)
+                except Exception:  # noqa: BLE001 - already finished or its worker gone
+                    pass
+            raise
     finally:
         if owned:
             ray.shutdown()
+
+
+def _drain_ray(ray, pending: dict, consume) -> None:
+    while pending:
+        ready, _ = ray.wait(list(pending), num_returns=1)
+        for ref in ready:
+            unit = pending.pop(ref)
+            try:
+                rows = ray.get(ref)
+            except Exception as exc:  # noqa: BLE001 - a crashed worker or task
+                rows = failed_rows(unit, f"Ray task failed ({type(exc).__name__}: {exc})"[:2000])
+            consume(rows)

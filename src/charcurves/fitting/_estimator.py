@@ -301,6 +301,13 @@ class CharacteristicCurves:
         names = template.curve_names
         sym = parse_symmetry(self.symmetry, names)
         if spec["symmetry"] and all(v == "none" for v in sym.values()):
+            if self.symmetry not in (None, "", {}) and str(self.symmetry).strip().lower() != "auto":
+                # an explicit "no prior" must not be turned into the +sym default silently
+                plain = self.method.replace("+sym", "")
+                raise ConfigError(
+                    f"method {self.method!r} imposes a parity prior but the symmetry given sets none on every curve; "
+                    f"use {plain!r} for no prior, or give the parities (e.g. f1=odd,f2=odd)"
+                )
             sym = {n: "odd" for n in names}  # the paper's +sym: odd curves
         if not spec["symmetry"] and not spec.get("allows_symmetry") and any(v != "none" for v in sym.values()):
             with_sym = [m for m in METHODS if m.startswith(self.method.split("+")[0]) and METHODS[m]["symmetry"]]

@@ -301,13 +301,17 @@ def _evidence_update(problem, theta, JtJ, r):
     beta = ((n_used - gamma_prev.sum(1)) / (2 * E_D)).clamp_min(1e-12)
     alpha = lam * (beta * n_used).view(K, 1)  # (K, G)
     H = 2 * beta.view(K, 1, 1) * JtJ_data + torch.diag_embed(2 * (alpha @ masks) + 1e-10)
-    Hinv_diag = torch.diagonal(torch.cholesky_inverse(torch.linalg.cholesky_ex(H)[0]), dim1=1, dim2=2)
+    L, info = torch.linalg.cholesky_ex(H)
+    ok = info == 0  # a model whose Hessian is not positive definite keeps its decay this step
+    L = torch.where(ok.view(K, 1, 1), L, torch.eye(P, dtype=L.dtype, device=L.device).expand(K, P, P))
+    Hinv_diag = torch.diagonal(torch.cholesky_inverse(L), dim1=1, dim2=2)
     tr_w = Hinv_diag @ masks.T  # (K, G)
     gamma = torch.minimum((m_g - 2 * alpha * tr_w).clamp_min(1.0), m_g)
+    gamma = torch.where(ok.view(K, 1), gamma, gamma_prev)
     problem.gamma = gamma
     alpha_new = gamma / (2 * E_W)
     beta_new = ((n_used - gamma.sum(1)) / (2 * E_D)).clamp_min(1e-12)
-    lam_new = alpha_new / (beta_new * n_used).view(K, 1)
+    lam_new = torch.where(ok.view(K, 1), alpha_new / (beta_new * n_used).view(K, 1), lam)
     if problem.weight_decay.dim() < 2 and G == 1:
         lam_new = lam_new[:, 0]  # keep the caller's (K,) layout
     return lam_new, gamma.sum(1)

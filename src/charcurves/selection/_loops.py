@@ -239,20 +239,21 @@ def _expanded(lo: float, hi: float) -> tuple[float, float]:
     return lo - (hi - lo), hi + (hi - lo)
 
 
-#: a forward run that needs more right-hand-side evaluations than this per sample of the record
-#: grinds at a singular point of the model (a coefficient curve such as the first-order f2(x)
-#: crossing 0) and is stopped there; a healthy run needs a few per sample
-MAX_EVALUATIONS_PER_SAMPLE = 200
+#: a forward run that makes this many right-hand-side evaluations without reaching the next
+#: sample grinds at a singular point of the model (a coefficient curve such as the first-order
+#: f2(x) crossing 0) and is stopped there; a healthy run makes about 20 per sample
+MAX_EVALUATIONS_PER_STEP = 2000
 
 
 class _RunGuard:
     """Ends a forward run of a general template early, through the simulator's own stop (which
     keeps the samples before it): when a curve argument leaves three times its training range
-    ("left_box") or the run grinds (``max_calls`` right-hand-side evaluations, "stalled").
-    Fires once: the simulator's rerun up to the stop then completes."""
+    ("left_box") or the run grinds without reaching the next sample time ("stalled"). Fires
+    once: the simulator's rerun up to the stop then completes."""
 
-    def __init__(self, max_calls: int):
-        self.calls, self.max_calls, self.t, self.armed = 0, int(max_calls), 0.0, True
+    def __init__(self, t_eval: np.ndarray, max_calls: int = MAX_EVALUATIONS_PER_STEP):
+        self.t_eval, self.max_calls = np.asarray(t_eval, dtype=float), int(max_calls)
+        self.next, self.stuck, self.t, self.armed = float(self.t_eval[0]), 0, 0.0, True
 
     def _stop(self, status: str, message: str):
         from ..simulate._families import _Stop
@@ -262,9 +263,15 @@ class _RunGuard:
 
     def tick(self, t: float) -> None:
         self.t = float(t)
-        self.calls += 1
-        if self.armed and self.calls > self.max_calls:
-            self._stop("stalled", f"more than {self.max_calls} right-hand-side evaluations (a singular model?)")
+        if self.t >= self.next:
+            k = int(np.searchsorted(self.t_eval, self.t, side="right"))
+            self.next = float(self.t_eval[k]) if k < self.t_eval.size else math.inf
+            self.stuck = 0
+            return
+        self.stuck += 1
+        if self.armed and self.stuck > self.max_calls:
+            self._stop("stalled", f"{self.max_calls} right-hand-side evaluations without reaching t = "
+                                  f"{self.next:.4g} (a singular model?)")
 
     def left(self, name: str) -> None:
         if self.armed:
@@ -317,7 +324,7 @@ def _forward(model, t, x0, v0, forcing, box, time_budget):
         return res.t, np.asarray(res.x, dtype=float).reshape(-1, 1), res.status
     from ..simulate._families import simulate_template_model
 
-    guard = _RunGuard(MAX_EVALUATIONS_PER_SAMPLE * len(t))
+    guard = _RunGuard(t)
     first = next(iter(forcing))
     guarded = dict(forcing)
     guarded[first] = lambda tt, f=forcing[first]: (guard.tick(tt), f(tt))[1]  # once per right-hand side

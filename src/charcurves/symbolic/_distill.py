@@ -38,6 +38,7 @@ from ._engine import (
     POLY_OPERATORS,
     TANH_OPERATORS,
     SymbolicRegressionEngine,
+    expression_complexity,
     make_engine,
     operators_option,
 )
@@ -101,6 +102,11 @@ def distill_curve(curve: FittedCurve, engine: SymbolicRegressionEngine | None = 
         Same name, argument and domain; shift 0 (the expression carries the curve's value at 0;
         :func:`distill_model` re-applies the gauge). ``meta`` holds the SR digest.
     """
+    return _distill(curve, engine, n=n, random_state=random_state, operators=operators)[0]
+
+
+def _distill(curve: FittedCurve, engine, *, n: int, random_state: int, operators):
+    """(selected closed form, every front member as a full-curve sympy expression, simplest first)."""
     import sympy as sp
 
     if engine is None:
@@ -119,11 +125,13 @@ def distill_curve(curve: FittedCurve, engine: SymbolicRegressionEngine | None = 
         res = engine.fit(z[:, None], y - jump_vals, ["z"], random_state=int(random_state), operators=POLY_OPERATORS,
                          context="curve")
         expr, mse = _refit_with_jump(res.expression, k, z, y)
+        front = [_refit_with_jump(e, k, z, y)[0] for _c, _m, e in res.front]
         mode = "smooth part + learned jump"
     else:
         ops = tuple(operators) if operators is not None else (TANH_OPERATORS if jump else POLY_OPERATORS)
         res = engine.fit(z[:, None], y, ["z"], random_state=int(random_state), operators=ops, context="curve")
         expr, mse = res.expression, res.mse
+        front = [e for _c, _m, e in res.front]
         mode = "whole curve"
     if expr.free_symbols - {zs}:  # pragma: no cover - engines only see z
         raise ConfigError(f"post-SR of {curve.name} returned {expr}, which is not a function of z alone")
@@ -132,7 +140,8 @@ def distill_curve(curve: FittedCurve, engine: SymbolicRegressionEngine | None = 
     meta = res.summary()
     meta.update({"source_kind": curve.kind, "n_grid": int(n), "jump_detected": bool(jump), "mode": mode,
                  "expression": str(expr), "distillation_rmse": float(np.sqrt(mse))})
-    return SymbolicFittedCurve(curve.name, curve.argument, curve.domain, expr, 0.0, meta)
+    front = [e for e in front if not (e.free_symbols - {zs})]
+    return SymbolicFittedCurve(curve.name, curve.argument, curve.domain, expr, 0.0, meta), front
 
 
 def _neural_jump(curve: FittedCurve, z: np.ndarray):
@@ -170,6 +179,77 @@ def _refit_with_jump(smooth_expr, k: float, z: np.ndarray, y: np.ndarray):
     return expr, float(np.mean((A @ coef - y) ** 2))
 
 
+#: A distilled model may fit the training record this much worse (relative data loss) than the
+#: model it distils before a curve is replaced by a more accurate member of its front.
+DATA_LOSS_TOLERANCE = 0.05
+
+
+def _guard_data_loss(model, curves: dict, fronts: dict, traj) -> None:
+    """Never let post-SR make the model clearly worse on its training record.
+
+    The knee of a curve's front is chosen on the curve's samples alone; when a smooth stand-in of
+    a jump (a SINDy polynomial of Coulomb friction) has no simple closed form, the knee is a
+    straight line that doubles the data loss. Here the data loss (sticking samples left out, as
+    in training) of the model with the distilled curves is compared with the model's own; while
+    it exceeds ``1 + DATA_LOSS_TOLERANCE`` times that, each curve that alone breaks the bound is
+    moved up its front to the simplest member that keeps it, else to the source's own closed form
+    (basis/symbolic curves), else to the front member of least data loss. ``curves`` is updated
+    in place; the choice is recorded in the curve's ``meta["data_guard"]``.
+    """
+    import sympy as sp
+
+    from ..fitting._model import FittedModel
+
+    mask = ~sticking_mask(traj)
+    zs = sp.Symbol("z")
+
+    def loss(cs: dict) -> float:
+        # constants are not re-gauged here: the gauge only moves them between curves and b
+        m = FittedModel(model.template, model.method, cs, model.gain, model.offset, model.loss, model.info)
+        r = np.asarray(m.force_residual(traj))[mask]
+        return float(np.mean(r**2))
+
+    def closed(name: str, expr, how: str) -> SymbolicFittedCurve:
+        c = curves[name]
+        z = model.curves[name].grid(int(c.meta.get("n_grid", 1000)))
+        rmse = float(np.sqrt(np.mean((SymbolicFittedCurve(c.name, c.argument, c.domain, expr)(z)
+                                      - model.curves[name](z)) ** 2)))
+        meta = dict(c.meta)
+        meta.update({"expression": str(expr), "data_guard": how, "complexity": expression_complexity(expr),
+                     "distillation_rmse": rmse})
+        return SymbolicFittedCurve(c.name, c.argument, c.domain, expr, 0.0, meta)
+
+    base = loss(dict(model.curves))
+    bound = base * (1.0 + DATA_LOSS_TOLERANCE)
+    if not np.isfinite(base) or loss(curves) <= bound:
+        return
+    for name, source in model.curves.items():
+        trial = dict(model.curves)
+        trial[name] = curves[name]
+        if loss(trial) <= bound:
+            continue
+        chosen = str(curves[name].expression())
+        best, best_loss = None, math.inf
+        for expr in fronts.get(name, []):
+            trial[name] = closed(name, expr, "")
+            value = loss(trial)
+            if value <= bound:
+                best, best_loss = expr, value
+                break
+            if value < best_loss:
+                best, best_loss = expr, value
+        if best_loss <= bound:
+            curves[name] = closed(name, best, f"front member kept the data loss within "
+                                              f"{DATA_LOSS_TOLERANCE:.0%} (knee {chosen} did not)")
+            continue
+        own = source.expression()
+        if own is not None and not (own.free_symbols - {zs}):
+            curves[name] = closed(name, own, f"source curve kept: no front member kept the data loss within "
+                                             f"{DATA_LOSS_TOLERANCE:.0%} (knee {chosen})")
+        elif best is not None:
+            curves[name] = closed(name, best, f"front member of least data loss (knee {chosen})")
+
+
 def distill_model(model, *, sr_options: dict | None = None, random_state: int = 0, n: int = 1000, traj=None):
     """Post-SR of every curve of a fitted model.
 
@@ -201,9 +281,12 @@ def distill_model(model, *, sr_options: dict | None = None, random_state: int = 
     t0 = time.perf_counter()
     engine = make_engine(sr_options)
     ops = operators_option(sr_options)
-    curves = {}
+    curves, fronts = {}, {}
     for i, (name, c) in enumerate(model.curves.items()):
-        curves[name] = distill_curve(c, engine, n=n, random_state=int(random_state) + 1000 * i, operators=ops)
+        curves[name], fronts[name] = _distill(c, engine, n=n, random_state=int(random_state) + 1000 * i,
+                                              operators=ops)
+    if traj is not None and traj.has_derivatives:
+        _guard_data_loss(model, curves, fronts, traj)
     order = tuple(model.template.curve_names)
     raw0 = {k: float(c.raw(np.array([0.0]))[0]) for k, c in curves.items()}
     pinned = {k: c.pinned_at_zero for k, c in curves.items()}

@@ -1,0 +1,105 @@
+"""Ctrl-C / SIGTERM stop a multi-worker sweep: workers gone, finished rows kept, a rerun resumes."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+
+import pytest
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals and /proc")
+
+#: post-SR jobs take seconds each, so the signal lands while workers are busy
+ARGS = ["--systems", "duffing", "--methods", "sindy-cc+sym+post-sr", "--snr", "40,20", "--realizations", "4",
+        "--workers", "2", "--forward-cases", "0", "--skip", "forward,lyapunov,miw,sensitivity,appendix-f", "--quiet"]
+N_JOBS = 8
+
+
+def _children(pid: int) -> set[int]:
+    """All descendants of ``pid`` (from /proc)."""
+    parents: dict[int, list[int]] = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as fh:
+                    ppid = int(fh.read().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                continue
+            parents.setdefault(ppid, []).append(int(entry))
+    out, todo = set(), [pid]
+    while todo:
+        for c in parents.get(todo.pop(), []):
+            out.add(c)
+            todo.append(c)
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def _rows(db: str) -> list[tuple]:
+    if not os.path.exists(db):
+        return []
+    con = sqlite3.connect(db, timeout=30)
+    try:
+        return con.execute("SELECT system, method, snr_db, realization, status, rmse_f1 FROM results").fetchall()
+    except sqlite3.OperationalError:  # table not created yet
+        return []
+    finally:
+        con.close()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_signal_stops_two_worker_benchmark_and_rerun_resumes(tmp_path, sig):
+    out = tmp_path / "bench"
+    db = str(out / "results.sqlite")
+    cmd = [sys.executable, "-m", "charcurves", "benchmark", "--out", str(out), *ARGS]
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        deadline = time.monotonic() + 240
+        while not _rows(db):
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "no row within 240 s"
+            time.sleep(0.2)
+        workers = _children(proc.pid)
+        assert len(workers) >= 2  # the two pool workers (and the resource tracker)
+        t0 = time.monotonic()
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=10)
+        stopped_in = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    deadline = time.monotonic() + 5
+    while any(_alive(p) for p in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not [p for p in workers if _alive(p)], "orphan worker processes"
+    assert stopped_in < 10
+    assert proc.returncode == 130, err
+    lines = [ln for ln in err.strip().splitlines() if ln.startswith("charcurves:")]
+    assert len(lines) == 1, err
+    rows = _rows(db)
+    n = len(rows)
+    assert 1 <= n < N_JOBS
+    assert lines[0] == (f"charcurves: sweep interrupted ({sig.name}): {n} of {N_JOBS} jobs finished and stored in "
+                        f"{db}; rerun the same command to resume")
+    keys = [r[:4] for r in rows]
+    assert len(set(keys)) == n  # unique
+    assert all(r[4] == "ok" and r[5] is not None and 0.0 <= r[5] < 1.0 for r in rows)  # complete rows
+
+    done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
+    assert done.returncode == 0, done.stderr
+    rows2 = _rows(db)
+    assert len(rows2) == N_JOBS and len({r[:4] for r in rows2}) == N_JOBS
+    assert set(rows) <= set(rows2)  # the first run's rows were kept, not recomputed
+    assert all(r[4] == "ok" for r in rows2)
