@@ -14,9 +14,9 @@ import pytest
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals and /proc")
 
 #: post-SR jobs take seconds each, so the signal lands while workers are busy
-ARGS = ["--systems", "duffing", "--methods", "sindy-cc+sym+post-sr", "--snr", "40,20", "--realizations", "4",
+ARGS = ["--systems", "duffing", "--methods", "sindy-cc+sym+post-sr", "--snr", "40,20", "--realizations", "3",
         "--workers", "2", "--forward-cases", "0", "--skip", "forward,lyapunov,miw,sensitivity,appendix-f", "--quiet"]
-N_JOBS = 8
+N_JOBS = 6
 
 
 def _children(pid: int) -> set[int]:
@@ -58,8 +58,65 @@ def _rows(db: str) -> list[tuple]:
         con.close()
 
 
+DRIVER = """
+import multiprocessing, os, signal, sys
+from charcurves.experiments import run_sweep
+from charcurves.experiments._sweep import Sweep, SweepInterrupted
+
+if __name__ == "__main__":
+    sweep = Sweep(systems=["duffing"], methods=["parametric"], snr_db=[40, 20, 0], realizations=4)
+    signame = sys.argv[2]
+
+    def on_row(row):
+        if signame != "none":  # stop after the first stored row, with the workers busy on the next units
+            print("WORKERS", *[p.pid for p in multiprocessing.active_children()], flush=True)
+            os.kill(os.getpid(), getattr(signal, signame))
+
+    try:
+        print(run_sweep(sweep, sys.argv[1], workers=2, progress=False, on_row=on_row), flush=True)
+    except SweepInterrupted as exc:
+        print(exc, file=sys.stderr)
+        sys.exit(130)
+"""
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", pytest.param("SIGTERM", marks=pytest.mark.slow)])
+def test_signal_stops_pool_sweep_keeps_rows_and_resumes(tmp_path, sig):
+    script = tmp_path / "driver.py"
+    script.write_text(DRIVER)
+    db = str(tmp_path / "store.sqlite")
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    t0 = time.monotonic()
+    res = subprocess.run([sys.executable, str(script), db, sig], capture_output=True, text=True, env=env, timeout=120)
+    assert res.returncode == 130, res.stderr
+    workers = [int(p) for p in res.stdout.split("WORKERS", 1)[1].split("\n")[0].split()]
+    assert len(workers) >= 2
+    deadline = time.monotonic() + 5
+    while any(_alive(p) for p in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not [p for p in workers if _alive(p)], "orphan worker processes"
+    rows = _rows(db)
+    n = len(rows)
+    assert 1 <= n < 12
+    assert res.stderr.strip().splitlines()[-1] == (
+        f"sweep interrupted ({sig}): {n} of 12 jobs finished and stored in {db}; rerun the same command to resume")
+    assert len({r[:4] for r in rows}) == n
+    assert all(r[4] == "ok" and r[5] is not None and 0.0 <= r[5] < 0.1 for r in rows)
+    assert time.monotonic() - t0 < 60
+
+    done = subprocess.run([sys.executable, str(script), db, "none"], capture_output=True, text=True, env=env,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert f"12 jobs: {n} already stored, {12 - n} run" in done.stdout
+    rows2 = _rows(db)
+    assert len(rows2) == 12 and len({r[:4] for r in rows2}) == 12
+    assert set(rows) <= set(rows2) and all(r[4] == "ok" for r in rows2)
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_signal_stops_two_worker_benchmark_and_rerun_resumes(tmp_path, sig):
+    """End to end through the CLI, the signal sent from outside while post-SR jobs run."""
     out = tmp_path / "bench"
     db = str(out / "results.sqlite")
     cmd = [sys.executable, "-m", "charcurves", "benchmark", "--out", str(out), *ARGS]
