@@ -535,7 +535,9 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
                              address, ray_init_kwargs, consume)
                 elif min(n_workers, len(units)) <= 1:
                     for unit in units:
-                        consume(run_unit(unit, settings))
+                        rows = run_unit(unit, settings)
+                        stop.check()  # a fit that caught Ctrl-C returns its model so far: not a finished job
+                        consume(rows)
                 else:
                     _run_pool(units, settings, min(n_workers, len(units)), consume)
         except KeyboardInterrupt:
