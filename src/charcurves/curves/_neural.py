@@ -169,18 +169,22 @@ class NeuralCurve:
         """
         mlp = self.mlp
         n_last = self.hidden[-1] + 1
+        _, J, _ = self._network_jacobian(theta, u, u_both)
+        return J[:, :, mlp.n_params - n_last:], slice(mlp.n_params - n_last, mlp.n_params)
+
+    def _network_jacobian(self, theta, u, u_both=None):
+        """The (symmetrised) network part: values ``(K, N)``, Jacobian ``(K, N, n_mlp)``, and ``u`` as ``(K, N)``."""
         th = theta[:, self.slices()["mlp"]]
         if u.dim() == 1:
             u = u.unsqueeze(0).expand(theta.shape[0], -1)
         sym = self.exact_symmetry
         if sym == "none":
-            _, J = mlp.forward_jacobian(th, u)
-        else:
-            n = u.shape[1]
-            _, Jb = mlp.forward_jacobian(th, torch.cat([u, -u], dim=1) if u_both is None else u_both)
-            s = -1.0 if sym == "odd" else 1.0
-            J = 0.5 * (Jb[:, :n] + s * Jb[:, n:])
-        return J[:, :, mlp.n_params - n_last:], slice(mlp.n_params - n_last, mlp.n_params)
+            y, J = self.mlp.forward_jacobian(th, u)
+            return y, J, u
+        n = u.shape[1]
+        yb, Jb = self.mlp.forward_jacobian(th, torch.cat([u, -u], dim=1) if u_both is None else u_both)
+        s = -1.0 if sym == "odd" else 1.0
+        return 0.5 * (yb[:, :n] + s * yb[:, n:]), 0.5 * (Jb[:, :n] + s * Jb[:, n:]), u
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, theta: torch.Tensor, u: torch.Tensor, u_both: torch.Tensor | None = None) -> torch.Tensor:
@@ -211,19 +215,7 @@ class NeuralCurve:
     def evaluate_jacobian(self, theta: torch.Tensor, u: torch.Tensor, u_both: torch.Tensor | None = None):
         """Values ``(K, N)`` and Jacobian ``(K, N, n_params)``."""
         sl = self.slices()
-        mlp = self.mlp
-        th = theta[:, sl["mlp"]]
-        if u.dim() == 1:
-            u = u.unsqueeze(0).expand(theta.shape[0], -1)
-        sym = self.exact_symmetry
-        if sym == "none":
-            y, J = mlp.forward_jacobian(th, u)
-        else:
-            n = u.shape[1]
-            yb, Jb = mlp.forward_jacobian(th, torch.cat([u, -u], dim=1) if u_both is None else u_both)
-            s = -1.0 if sym == "odd" else 1.0
-            y = 0.5 * (yb[:, :n] + s * yb[:, n:])
-            J = 0.5 * (Jb[:, :n] + s * Jb[:, n:])
+        y, J, u = self._network_jacobian(theta, u, u_both)
         cols = [J]
         if self.has_linear:
             y = y + theta[:, sl["linear"]] * u

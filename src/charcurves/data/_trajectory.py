@@ -61,8 +61,33 @@ def _closest_column(wanted: str, columns: list) -> str | None:
     return prefixed[0] if prefixed else None
 
 
+class _SampledRecord:
+    """What every record with a time axis ``t`` offers (one- and multi-DOF alike)."""
+
+    t: np.ndarray
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def dt(self) -> float:
+        """Median sampling step."""
+        return float(np.median(np.diff(self.t)))
+
+    def require_samples(self, n_min: int, what: str) -> None:
+        if self.n_samples < n_min:
+            raise DataError(
+                f"{what} needs at least {n_min} samples, the record has {self.n_samples}; "
+                "give a longer record"
+            )
+
+    def replace(self, **changes: Any):
+        return dataclasses.replace(self, **changes)
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
-class Trajectory:
+class Trajectory(_SampledRecord):
     """A measured (or simulated) record of a forced one-degree-of-freedom system.
 
     Parameters
@@ -201,15 +226,6 @@ class Trajectory:
 
     # ------------------------------------------------------------------ properties
     @property
-    def n_samples(self) -> int:
-        return int(self.t.shape[0])
-
-    @property
-    def dt(self) -> float:
-        """Median sampling step."""
-        return float(np.median(np.diff(self.t)))
-
-    @property
     def duration(self) -> float:
         return float(self.t[-1] - self.t[0])
 
@@ -234,15 +250,6 @@ class Trajectory:
                 "or use --derivatives spline"
             )
 
-    def require_samples(self, n_min: int, what: str) -> None:
-        if self.n_samples < n_min:
-            raise DataError(
-                f"{what} needs at least {n_min} samples, the record has {self.n_samples}; "
-                "give a longer record"
-            )
-
-    def replace(self, **changes: Any) -> Trajectory:
-        return dataclasses.replace(self, **changes)
 
     def slice(self, rows: slice) -> Trajectory:
         """Rows ``rows`` of the record (derivatives sliced alongside)."""
@@ -271,7 +278,7 @@ class Trajectory:
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
-class MultiTrajectory:
+class MultiTrajectory(_SampledRecord):
     """A record of a forced system with several degrees of freedom (named states and forcings).
 
     Parameters
@@ -379,24 +386,9 @@ class MultiTrajectory:
         return cls.from_columns(read_csv_columns(path), **kwargs)
 
     @property
-    def n_samples(self) -> int:
-        return int(self.t.shape[0])
-
-    @property
-    def dt(self) -> float:
-        return float(np.median(np.diff(self.t)))
-
-    @property
     def has_derivatives(self) -> bool:
         return self.velocities is not None and self.accelerations is not None
 
-    def require_samples(self, n_min: int, what: str) -> None:
-        if self.n_samples < n_min:
-            raise DataError(f"{what} needs at least {n_min} samples, the record has {self.n_samples}; "
-                            "give a longer record")
-
-    def replace(self, **changes: Any) -> "MultiTrajectory":
-        return dataclasses.replace(self, **changes)
 
     def dof(self, state: str, force: str | None = None) -> Trajectory:
         """One state as a :class:`Trajectory` (with ``force``, or the first forcing, as F)."""

@@ -146,15 +146,8 @@ def fit_neural(
         theta0 = _warm_start(problem, theta0)
 
     with torch_threads(threads):
-        # Models are independent, so they train in chunks: the Jacobians of a chunk stay small
-        # enough for the cache and memory stays bounded, with results identical to one batch.
-        # (48 on a CPU, where small Jacobians stay in cache; a GPU wants the whole batch at once)
-        if chunk_models is None:
-            chunk_models = 48 if torch.device(device).type == "cpu" else 4096
-        chunk = max(R, (chunk_models // R) * R)
-        theta, logs = train_in_chunks(problem, theta0, chunk, progress=progress, adam_steps=preset.adam_steps,
-                                      adam_lr=preset.adam_lr, lm_max_iter=preset.lm_max_iter, lm_tol=preset.lm_tol,
-                                      stop_loss=preset.stop_loss)
+        theta, logs = train_with_preset(problem, theta0, preset, device=device, chunk_models=chunk_models,
+                                        progress=progress)
         theta = _profile_jump_widths(problem, theta)
         log = _merge_logs([lg for _, _, lg in logs])
         with torch.no_grad():
@@ -244,6 +237,24 @@ def _gain_estimate(args, a, F, mask, fallback):
     coef, *_ = np.linalg.lstsq(A / np.linalg.norm(A, axis=0), F[mask], rcond=None)
     h = coef[0] / np.linalg.norm(A[:, 0])
     return float(1.0 / h) if np.isfinite(h) and h != 0 else float(fallback)
+
+
+def train_with_preset(problem, theta0, preset: TrainingPreset, *, device, chunk_models: int | None, progress=None):
+    """Train every model start of ``problem`` with ``preset``'s optimiser settings, in chunks.
+
+    Models are independent, so they train in chunks: the Jacobians of a chunk stay small enough
+    for the cache and memory stays bounded, with results identical to one batch (48 models on a
+    CPU; a GPU wants the whole batch at once). Chunks hold whole groups of ``n_starts``.
+    """
+    import torch
+
+    if chunk_models is None:
+        chunk_models = 48 if torch.device(device).type == "cpu" else 4096
+    R = preset.n_starts
+    chunk = max(R, (chunk_models // R) * R)
+    return train_in_chunks(problem, theta0, chunk, progress=progress, adam_steps=preset.adam_steps,
+                           adam_lr=preset.adam_lr, lm_max_iter=preset.lm_max_iter, lm_tol=preset.lm_tol,
+                           stop_loss=preset.stop_loss)
 
 
 def train_in_chunks(problem, theta0, chunk: int, *, progress=None, **train_options):

@@ -100,7 +100,7 @@ def fit_neural_template(records: Sequence, template: EquationTemplate, curves: d
     from ..curves._fitted import NeuralFittedCurve
     from ..curves._neural import NeuralCurve
     from ..fitting._gradient import BatchedProblem, CurveTerm
-    from ..fitting._neural_fit import _merge_logs, _warm_start, chunk_log, torch_threads, train_in_chunks
+    from ..fitting._neural_fit import _merge_logs, _warm_start, chunk_log, torch_threads, train_with_preset
 
     if len(records) != len(seeds):
         raise ConfigError("give one seed per trajectory")
@@ -186,13 +186,9 @@ def fit_neural_template(records: Sequence, template: EquationTemplate, curves: d
         theta0 = _warm_start(problem, theta0)
 
     with torch_threads(threads):
-        if chunk_models is None:
-            chunk_models = 48 if torch.device(device).type == "cpu" else 4096
-        chunk = max(R, (chunk_models // R) * R)
         # Ctrl-C ends the whole call as in the separable fit (see train_in_chunks)
-        theta, logs = train_in_chunks(problem, theta0, chunk, progress=progress, adam_steps=preset.adam_steps,
-                                      adam_lr=preset.adam_lr, lm_max_iter=preset.lm_max_iter, lm_tol=preset.lm_tol,
-                                      stop_loss=preset.stop_loss)
+        theta, logs = train_with_preset(problem, theta0, preset, device=device, chunk_models=chunk_models,
+                                        progress=progress)
         log = _merge_logs([lg for _, _, lg in logs])
         with torch.no_grad():
             total_loss = torch.cat([sub.loss(theta[s:s + sub.K]) for s, sub, _ in logs]).double().cpu().numpy()
