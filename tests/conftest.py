@@ -3,6 +3,9 @@ import os
 # Tests run on small shared machines: one torch/BLAS thread per process is fastest there.
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MPLBACKEND", "Agg")
+# MKL's matrix products may differ in the last bit with the memory alignment of their operands;
+# strict conditional reproducibility removes that (read when torch loads MKL, so set it first)
+os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
