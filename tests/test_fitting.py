@@ -186,18 +186,26 @@ def test_jump_layout_is_decided_per_record_in_a_batch(duffing):
         assert np.isfinite(m.curves["f1"](np.linspace(-1, 1, 11))).all()
 
 
-def test_per_curve_decay_equals_shared_with_one_group_and_separates_curves(duffing_20db):
-    import torch
-
+def test_decay_groups_shared_per_curve_and_per_layer(duffing, duffing_20db):
     from charcurves.fitting._presets import get_preset
 
-    shared = cc.fit(duffing_20db, method="nn-cc+sym", random_state=0, threads=1,
-                    preset=get_preset("default").replace(decay_groups="shared"))
-    per = cc.fit(duffing_20db, method="nn-cc+sym", random_state=0, threads=1)
-    assert len(shared.info["weight_decay"]) == 1 and len(per.info["weight_decay"]) == 2
+    fits = {g: cc.fit(duffing_20db, method="nn-cc+sym", random_state=0, threads=1,
+                      preset=get_preset("default").replace(decay_groups=g))
+            for g in ("shared", "per-curve", "per-layer")}
+    assert fits["shared"].info["weight_decay_groups"] == ["all networks"]
+    assert fits["per-curve"].info["weight_decay_groups"] == ["f1", "f2"]
+    per = fits["per-curve"].info["weight_decay"]
     # the damping is linear (carried by the linear term): its network is damped far harder
-    assert per.info["weight_decay"][0] > 10 * per.info["weight_decay"][1]
-    del torch
+    assert per[0] > 10 * per[1]
+    layer = fits["per-layer"]
+    assert layer.info["weight_decay_groups"] == [
+        f"{c} layer {n} {kind}" for c in ("f1", "f2") for n in (1, 2) for kind in ("weights", "biases")]
+    d = dict(zip(layer.info["weight_decay_groups"], layer.info["weight_decay"]))
+    assert d["f1 layer 2 weights"] > 10 * d["f2 layer 2 weights"]
+    assert get_preset("default").decay_groups == "per-layer"
+    for g, m in fits.items():  # every grouping recovers the curves (20 dB, seed 0)
+        errs = curve_errors(m, duffing[0].true_curves())
+        assert errs["f1"] < 3e-3 and errs["f2"] < 7e-3, (g, errs)
 
 
 def test_auto_jump_stays_off_without_sticking_and_in_the_paper_preset(duffing_20db):

@@ -25,6 +25,8 @@ from ..curves._neural import NeuralCurve
 
 __all__ = ["CurveTerm", "BatchedProblem", "train"]
 
+DECAY_GROUPS = ("shared", "per-curve", "per-layer")
+
 
 @dataclasses.dataclass
 class CurveTerm:
@@ -80,14 +82,28 @@ class BatchedProblem:
             decay[self.offsets[i] + sl.start : self.offsets[i] + sl.stop] = True
         use_decay = self.bayesian or (float(torch.as_tensor(self.weight_decay).max()) > 0)
         self.decay_index = torch.nonzero(decay).flatten().to(self.y.device) if use_decay else None
-        if self.decay_groups not in ("shared", "per-curve"):
-            raise ValueError(f"decay_groups must be 'shared' or 'per-curve', got {self.decay_groups!r}")
+        if self.decay_groups not in DECAY_GROUPS:
+            raise ValueError(f"decay_groups must be one of {', '.join(DECAY_GROUPS)}, got {self.decay_groups!r}")
         group = torch.zeros(o, dtype=torch.long)
+        # labels name each group by the term index ("curve 0") for the caller to map to curve names
+        self.decay_group_labels = ["all networks"]
         if self.decay_groups == "per-curve":
             for i, term in enumerate(self.terms):
                 sl = term.curve.slices()["mlp"]
                 group[self.offsets[i] + sl.start : self.offsets[i] + sl.stop] = i
-        self.n_decay_groups = len(self.terms) if self.decay_groups == "per-curve" else 1
+            self.decay_group_labels = [f"curve {i}" for i in range(len(self.terms))]
+        elif self.decay_groups == "per-layer":
+            # MacKay's groups: each layer's weights and its biases, per curve (they act on
+            # different scales, so one decay for all of them over- or under-damps some)
+            self.decay_group_labels = []
+            for i, term in enumerate(self.terms):
+                start = self.offsets[i] + term.curve.slices()["mlp"].start
+                for layer, (fan_in, fan_out) in enumerate(term.curve.mlp.layers, start=1):
+                    for kind, size in (("weights", fan_in * fan_out), ("biases", fan_out)):
+                        group[start : start + size] = len(self.decay_group_labels)
+                        self.decay_group_labels.append(f"curve {i} layer {layer} {kind}")
+                        start += size
+        self.n_decay_groups = len(self.decay_group_labels)
         self.decay_group = group[decay].to(self.y.device) if use_decay else None  # (m,) group of each decayed weight
         self.set_weight_decay(self.weight_decay)
         self.n_used = (self.weights > 0).sum(dim=1).to(self.y.dtype)

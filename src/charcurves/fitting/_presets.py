@@ -45,9 +45,10 @@ class TrainingPreset:
     bayesian : bool
         Bayesian regularisation (MacKay; Foresee & Hagan): the weight decay of the network
         weights is re-estimated from the evidence at every Levenberg-Marquardt step.
-    decay_groups : {"shared", "per-curve"}
-        With Bayesian regularisation: one weight decay for all networks of a model, or one per
-        curve (each curve's smoothness set by the evidence separately).
+    decay_groups : {"shared", "per-curve", "per-layer"}
+        With Bayesian regularisation: one weight decay for all networks of a model, one per
+        curve (each curve's smoothness set by the evidence separately), or one per layer's
+        weights and per layer's biases of each curve (MacKay's groups; the default).
     auto_jump : bool
         Whether ``jump="auto"`` may add a learned jump to the velocity curve of records with
         sticking phases (off in the paper preset: the paper's networks have none).
@@ -74,7 +75,7 @@ class TrainingPreset:
     combine_tol: float = 0.02
     auto_jump: bool = True
     bayesian: bool = True
-    decay_groups: str = "per-curve"
+    decay_groups: str = "per-layer"
 
     def __post_init__(self) -> None:
         if self.dtype not in ("float64", "float32"):
@@ -82,8 +83,9 @@ class TrainingPreset:
         for key in ("adam_steps", "lm_max_iter", "n_sym", "n_starts"):
             if int(getattr(self, key)) < 0:
                 raise ConfigError(f"{key} must be >= 0, got {getattr(self, key)}")
-        if self.decay_groups not in ("shared", "per-curve"):
-            raise ConfigError(f"decay_groups must be 'shared' or 'per-curve', got {self.decay_groups!r}")
+        if self.decay_groups not in ("shared", "per-curve", "per-layer"):
+            raise ConfigError(
+                f"decay_groups must be 'shared', 'per-curve' or 'per-layer', got {self.decay_groups!r}")
         if self.combine not in ("mean", "best"):
             raise ConfigError(f"combine must be 'mean' or 'best', got {self.combine!r}")
         if self.n_starts < 1:
