@@ -85,25 +85,25 @@ class BatchedProblem:
         if self.decay_groups not in DECAY_GROUPS:
             raise ValueError(f"decay_groups must be one of {', '.join(DECAY_GROUPS)}, got {self.decay_groups!r}")
         group = torch.zeros(o, dtype=torch.long)
-        # labels name each group by the term index ("curve 0") for the caller to map to curve names
-        self.decay_group_labels = ["all networks"]
+        # each group as (term index or None for all terms, what part of that term's network)
+        self.decay_group_parts: list[tuple[int | None, str]] = [(None, "")]
         if self.decay_groups == "per-curve":
             for i, term in enumerate(self.terms):
                 sl = term.curve.slices()["mlp"]
                 group[self.offsets[i] + sl.start : self.offsets[i] + sl.stop] = i
-            self.decay_group_labels = [f"curve {i}" for i in range(len(self.terms))]
+            self.decay_group_parts = [(i, "") for i in range(len(self.terms))]
         elif self.decay_groups == "per-layer":
             # MacKay's groups: each layer's weights and its biases, per curve (they act on
             # different scales, so one decay for all of them over- or under-damps some)
-            self.decay_group_labels = []
+            self.decay_group_parts = []
             for i, term in enumerate(self.terms):
                 start = self.offsets[i] + term.curve.slices()["mlp"].start
                 for layer, (fan_in, fan_out) in enumerate(term.curve.mlp.layers, start=1):
                     for kind, size in (("weights", fan_in * fan_out), ("biases", fan_out)):
-                        group[start : start + size] = len(self.decay_group_labels)
-                        self.decay_group_labels.append(f"curve {i} layer {layer} {kind}")
+                        group[start : start + size] = len(self.decay_group_parts)
+                        self.decay_group_parts.append((i, f"layer {layer} {kind}"))
                         start += size
-        self.n_decay_groups = len(self.decay_group_labels)
+        self.n_decay_groups = len(self.decay_group_parts)
         self.decay_group = group[decay].to(self.y.device) if use_decay else None  # (m,) group of each decayed weight
         self.set_weight_decay(self.weight_decay)
         self.n_used = (self.weights > 0).sum(dim=1).to(self.y.dtype)

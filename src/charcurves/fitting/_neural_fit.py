@@ -155,10 +155,9 @@ def fit_neural(
             decay = torch.cat([sub.decay_per_group(sub.K).to(theta.dtype) for _, sub, _ in logs])  # (KR, G)
     elapsed = time.perf_counter() - t_start
     theta = theta.double().cpu()
-    # the problem's terms follow ``names``: "curve 1 layer 1 weights" -> "f2 layer 1 weights"
-    decay_group_names = [lbl.replace("curve ", "", 1) for lbl in problem.decay_group_labels]
-    decay_group_names = [(names[int(lbl.split(" ", 1)[0])] + (" " + lbl.split(" ", 1)[1] if " " in lbl else ""))
-                         if lbl[:1].isdigit() else lbl for lbl in decay_group_names]
+    # the problem's terms follow ``names``: (1, "layer 1 weights") -> "f2 layer 1 weights"
+    decay_group_names = [" ".join(filter(None, ("all networks" if i is None else names[i], part)))
+                         for i, part in problem.decay_group_parts]
     # a jump whose tanh is saturated at every fitted sample has a width the data cannot see:
     # take the sharpest law they allow (Coulomb's sign) rather than an arbitrary width
     unresolved_jump = _sharpen_unresolved_jumps(problem, theta)
