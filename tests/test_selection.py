@@ -188,6 +188,44 @@ def test_outer_loop_two_dof_follows_held_out_records_and_rejects_a_self_exciting
     assert wrong.figures["statuses"] == ["left_box", "left_box"]
 
 
+def test_bootstrap_of_two_dof_records_flips_each_equations_residual_with_one_sign_per_sample():
+    from charcurves.selection import bootstrap_records
+
+    rec = corrupt_forces(get_system("two-dof").simulate(t_end=50.0, n_points=1000), 25, seed=0)
+    model = CharacteristicCurves(family="two-dof", method="poly-cc", random_state=0).fit(rec).model_
+    r = model.force_residual(rec)
+    assert r.shape == (1000, 2)
+    boot = bootstrap_records(rec, model, 3, random_state=5)
+    assert len(boot) == 3
+    for b in boot:
+        assert b.states["x1"] is rec.states["x1"] or np.array_equal(b.states["x1"], rec.states["x1"])
+        rb = model.force_residual(b)
+        ratio = rb / r  # +1 or -1 everywhere: the model's residual on the new record is the old one, flipped
+        assert np.allclose(np.abs(ratio), 1.0, atol=1e-9)
+        assert np.array_equal(np.sign(ratio[:, 0]), np.sign(ratio[:, 1]))  # one sign per sample
+        assert 0.3 < np.mean(ratio[:, 0] < 0) < 0.7
+
+
+def test_cli_select_two_dof_records(tmp_path, capsys):
+    starts = [{}, {"x10": -0.4, "x20": 0.6, "A1": 0.8, "A2": 0.9}]
+    paths = []
+    for k, kw in enumerate(starts):
+        paths.append(tmp_path / f"two{k}.csv")
+        corrupt_forces(get_system("two-dof", **kw).simulate(t_end=50.0, n_points=1000), 25, seed=k).to_csv(paths[k])
+    out = tmp_path / "sel"
+    code = main(["select", *map(str, paths), "--families", "two-dof", "--method", "poly-cc", "--members", "4",
+                 "--out", str(out), "--quiet"])
+    assert code == 0
+    doc = json.loads((out / "selection.json").read_text())
+    assert doc["accepted"] == "two-dof"
+    row = doc["families"][0]
+    assert 0.7 < row["inner"]["statistic"] < 1.5  # the loss sits at the noise floor of both forcings
+    assert "mean over the 2 forcing columns" in row["inner"]["figures"]["floor_source"]
+    assert row["middle"]["statistic"] < 3 and row["outer"]["passed"]
+    assert main(["select", *map(str, paths), "--families", "separable,two-dof"]) == 2
+    assert "mixes multi-DOF and one-DOF families" in capsys.readouterr().err
+
+
 def test_select_refuses_an_unknown_family_before_fitting():
     rec = get_system("duffing").simulate()
     with pytest.raises(ConfigError, match="unknown family 'quadratic'"):

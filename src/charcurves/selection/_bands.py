@@ -74,7 +74,9 @@ def bootstrap_records(record, model, n: int, *, random_state: int = 0) -> list:
         raise ConfigError(f"a bootstrap needs the model's residual, which a {type(model).__name__} does not give; "
                           "use kind='seeds'")
     resid = np.asarray(model.force_residual(record), dtype=float) / float(model.gain)
-    if resid.ndim != 1 or not hasattr(record, "F"):
+    if resid.ndim == 2:
+        return _bootstrap_multi(record, model, resid, n, random_state)
+    if not hasattr(record, "F"):
         raise ConfigError("the residual bootstrap handles one-equation templates on one forcing column; "
                           "use kind='seeds' for this template")
     F = np.asarray(record.F, dtype=float)
@@ -84,6 +86,32 @@ def bootstrap_records(record, model, n: int, *, random_state: int = 0) -> list:
     for _ in range(n):
         signs = rng.choice([-1.0, 1.0], size=F.size)
         out.append(record.replace(F=f_hat - signs * resid))
+    return out
+
+
+def _bootstrap_multi(record, model, resid, n: int, random_state: int) -> list:
+    """The wild bootstrap for several equations, each driven by its own forcing column.
+
+    One sign per sample, shared by the equations, keeps the noise's correlation between them.
+    """
+    import sympy
+
+    forces = getattr(record, "forces", None)
+    inputs = [eq.input for eq in getattr(model.template, "equations", ())]
+    names = [str(e) for e in inputs if isinstance(e, sympy.Symbol)]
+    if forces is None or len(names) != len(inputs) or len(set(names)) != len(names) or \
+            any(nm not in forces for nm in names) or resid.shape[1] != len(names):
+        raise ConfigError("the residual bootstrap needs every equation to have one forcing column of its own "
+                          "(as two-dof: F1, F2); use kind='seeds' for this template")
+    rng = np.random.default_rng(random_state)
+    # residual = known + curves - g * input, so input - input_hat = -residual / g
+    fitted = {nm: np.asarray(forces[nm], dtype=float) + resid[:, e] for e, nm in enumerate(names)}
+    out = []
+    for _ in range(n):
+        signs = rng.choice([-1.0, 1.0], size=resid.shape[0])
+        new = dict(forces)
+        new.update({nm: fitted[nm] - signs * resid[:, e] for e, nm in enumerate(names)})
+        out.append(record.replace(forces=new))
     return out
 
 

@@ -15,6 +15,8 @@ __all__ = ["run_select"]
 def run_select(a, *, say, check_out) -> int:
     """Run the family search for the parsed command line ``a``; 0 whether or not a family is accepted."""
     from ..data import Trajectory
+    from ..templates._fit import read_record
+    from ..templates._separable import get_template
     from ..io._csv import atomic_write_bytes
     from ._bands import MIN_MEMBERS
     from ._loops import select_family
@@ -26,8 +28,16 @@ def run_select(a, *, say, check_out) -> int:
         raise ConfigError(f"--members must be at least {MIN_MEMBERS} to measure the curves' spread, got {a.members}")
     if a.out is not None:
         check_out(a.out)
-    records = [Trajectory.from_csv(path, time_col=a.time_col, x_col=a.x_col, force_col=a.force_col)
-               for path in a.csv]
+    multi = [getattr(get_template(f), "multi_dof", False) for f in families]
+    if any(multi) and not all(multi):
+        raise ConfigError(f"--families mixes multi-DOF and one-DOF families ({', '.join(families)}); a selection "
+                          "compares families on the same records: give only one-DOF families for t,x,F records, "
+                          "or only two-dof for t,x1,x2,F1,F2 records")
+    if any(multi):
+        records = [read_record(path, family=families[0], time_col=a.time_col) for path in a.csv]
+    else:
+        records = [Trajectory.from_csv(path, time_col=a.time_col, x_col=a.x_col, force_col=a.force_col)
+                   for path in a.csv]
     report = select_family(records, families, method=a.method, n_members=a.members, snr_db=a.snr,
                            all_families=a.all, all_loops=a.all, random_state=a.seed,
                            threads=1 if a.threads is None else a.threads, derivatives=a.derivatives,

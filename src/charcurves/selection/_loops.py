@@ -115,6 +115,8 @@ def noise_floor(record, *, gain: float = 1.0, snr_db: float | None = None,
     >>> round(nf.sigma2_force, 5)   # the noise added has variance 0.00120
     0.00118
     """
+    if getattr(record, "forces", None) is not None:
+        return _multi_noise_floor(record, gain, snr_db, settings, acceleration_given)
     F = np.asarray(record.F, dtype=float)
     g2 = float(gain) ** 2
     if snr_db is not None:
@@ -133,6 +135,27 @@ def noise_floor(record, *, gain: float = 1.0, snr_db: float | None = None,
         s2a = _noise_variance(np.asarray(record.a), settings)
     floor = g2 * s2f + s2a + REL_FLOOR * g2 * float(np.var(F))
     return NoiseFloor(sigma2_force=s2f, sigma2_acceleration=s2a, floor=floor, source=source)
+
+
+def _multi_noise_floor(record, gain, snr_db, settings, acceleration_given) -> NoiseFloor:
+    """Several equations, each with its forcing column (and its state's x''): the model's loss is
+    the mean squared residual over all of them, so the floor is the mean of their floors."""
+    from ..data._trajectory import Trajectory
+
+    accs = record.accelerations or {}
+    states = list(record.states)
+    parts = []
+    for k, name in enumerate(record.forces):
+        state = states[min(k, len(states) - 1)]
+        a = accs.get(state)
+        one = Trajectory(record.t, record.states[state], record.forces[name], None if a is None else
+                         record.velocities[state], a, name=record.name)
+        parts.append(noise_floor(one, gain=gain, snr_db=snr_db, settings=settings,
+                                 acceleration_given=acceleration_given))
+    return NoiseFloor(sigma2_force=float(np.mean([p.sigma2_force for p in parts])),
+                      sigma2_acceleration=float(np.mean([p.sigma2_acceleration for p in parts])),
+                      floor=float(np.mean([p.floor for p in parts])),
+                      source=parts[0].source + f", mean over the {len(parts)} forcing columns")
 
 
 # --------------------------------------------------------------------------- loop results

@@ -151,9 +151,13 @@ def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, th
         estimator = CharacteristicCurves(**estimator_params)
     params = estimator.get_params()
     params.update(method=method, symmetry=None, random_state=int(random_state), progress=None)
-    # the residual bootstrap needs one equation on one forcing; several equations use seeds
-    kind = "bootstrap" if hasattr(record, "F") else "seeds"
-    ensemble = fit_ensemble(CharacteristicCurves(**params), record, n_members, kind=kind)
+    try:
+        ensemble = fit_ensemble(CharacteristicCurves(**params), record, n_members, kind="bootstrap")
+    except ConfigError as exc:
+        # the residual bootstrap needs each equation's own forcing column; otherwise seeds only
+        if "kind='seeds'" not in str(exc):
+            raise
+        ensemble = fit_ensemble(CharacteristicCurves(**params), record, n_members, kind="seeds")
     return parity_tests(ensemble, threshold=threshold)
 
 
@@ -211,7 +215,8 @@ def fit_many_auto(estimator, trajectories, seeds=None):
         "applied": applied,
         "method": method,
         "requested_method": estimator.method,
-        "detection": {"method": detector, "members": AUTO_MEMBERS, "kind": "bootstrap",
+        "detection": {"method": detector, "members": AUTO_MEMBERS,
+                      "kind": "bootstrap (training seeds where an equation has no forcing column of its own)",
                       "threshold": PARITY_THRESHOLD, "approximation_tolerance": APPROX_TOL},
         "tests": tests[0] if len(tests) == 1 else tests,
     }
