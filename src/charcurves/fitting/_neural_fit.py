@@ -130,29 +130,19 @@ def fit_neural(
                              decay_groups=preset.decay_groups)
 
     # ---------------------------------------------------------------- initialisation (per model seed)
-    thetas = []
-    for seed in seeds:
-        for r in range(R):
-            gen = torch.Generator().manual_seed(int(seed) * 7919 + r)
-            parts = [curves[nm].init(1, gen, dtype) for nm in names]
-            if template.free_gain:
-                start = 1.0 if template.gain_on == "force" else float(template.gain)
-                parts.append(torch.full((1, 1), start, dtype=dtype))
-            if bias:
-                parts.append(torch.zeros(1, 1, dtype=dtype))
-            thetas.append(torch.cat(parts, dim=1))
-    theta0 = torch.cat(thetas, dim=0).to(device)
-    if preset.warm_start:
-        theta0 = _warm_start(problem, theta0)
+    def draw(gen):
+        parts = [curves[nm].init(1, gen, dtype) for nm in names]
+        if template.free_gain:
+            start = 1.0 if template.gain_on == "force" else float(template.gain)
+            parts.append(torch.full((1, 1), start, dtype=dtype))
+        if bias:
+            parts.append(torch.zeros(1, 1, dtype=dtype))
+        return parts
 
-    with torch_threads(threads):
-        theta, logs = train_with_preset(problem, theta0, preset, device=device, chunk_models=chunk_models,
-                                        progress=progress)
-        theta = _profile_jump_widths(problem, theta)
-        log = _merge_logs([lg for _, _, lg in logs])
-        with torch.no_grad():
-            total_loss = torch.cat([sub.loss(theta[s:s + sub.K]) for s, sub, _ in logs]).double().cpu().numpy()
-            decay = torch.cat([sub.decay_per_group(sub.K).to(theta.dtype) for _, sub, _ in logs])  # (KR, G)
+    theta, logs, log, total_loss = train_batched(
+        problem, start_weights(seeds, R, draw).to(device), preset, threads=threads, device=device,
+        chunk_models=chunk_models, progress=progress, profile_jumps=True)
+    decay = torch.cat([sub.decay_per_group(sub.K).to(theta.dtype) for _, sub, _ in logs])  # (KR, G)
     elapsed = time.perf_counter() - t_start
     theta = theta.double().cpu()
     # the problem's terms follow ``names``: (1, "layer 1 weights") -> "f2 layer 1 weights"
@@ -241,6 +231,33 @@ def _gain_estimate(args, a, F, mask, fallback):
     coef, *_ = np.linalg.lstsq(A / np.linalg.norm(A, axis=0), F[mask], rcond=None)
     h = coef[0] / np.linalg.norm(A[:, 0])
     return float(1.0 / h) if np.isfinite(h) and h != 0 else float(fallback)
+
+
+def start_weights(seeds, n_starts: int, draw) -> torch.Tensor:
+    """Initial weights ``(len(seeds) * n_starts, P)``: ``draw(generator)`` gives one row's parts,
+    each (seed, start) row from its own generator so a seed gives the same start in any batch."""
+    import torch
+
+    return torch.cat([torch.cat(draw(torch.Generator().manual_seed(int(seed) * 7919 + r)), dim=1)
+                      for seed in seeds for r in range(n_starts)], dim=0)
+
+
+def train_batched(problem, theta0, preset: TrainingPreset, *, threads, device, chunk_models, progress,
+                  profile_jumps: bool = False):
+    """Warm start, train with ``preset`` (Ctrl-C ends the whole call, see :func:`train_in_chunks`)
+    and, for jump-aware curves, profile the jump widths: ``(theta, logs, merged log, loss per row)``."""
+    import torch
+
+    if preset.warm_start:
+        theta0 = _warm_start(problem, theta0)
+    with torch_threads(threads):
+        theta, logs = train_with_preset(problem, theta0, preset, device=device, chunk_models=chunk_models,
+                                        progress=progress)
+        if profile_jumps:
+            theta = _profile_jump_widths(problem, theta)
+        with torch.no_grad():
+            total_loss = torch.cat([sub.loss(theta[s:s + sub.K]) for s, sub, _ in logs]).double().cpu().numpy()
+    return theta, logs, _merge_logs([lg for _, _, lg in logs]), total_loss
 
 
 def train_with_preset(problem, theta0, preset: TrainingPreset, *, device, chunk_models: int | None, progress=None):

@@ -68,32 +68,36 @@ def bootstrap_records(record, model, n: int, *, random_state: int = 0) -> list:
     The state and its derivatives stay as they are (they define where the curves are sampled);
     the forcing becomes ``F_hat + w * e`` with ``e = F - F_hat`` the model's residual in force
     units and ``w = ±1`` at random per sample. Sign flips, rather than resampling residuals,
-    keep each sample's own residual size (heteroscedastic noise, sticking phases).
+    keep each sample's own residual size (heteroscedastic noise, sticking phases). Several
+    equations (two-dof) flip each equation's forcing column with the same sign per sample.
     """
     if not hasattr(model, "force_residual"):
         raise ConfigError(f"a bootstrap needs the model's residual, which a {type(model).__name__} does not give; "
                           "use kind='seeds'")
     resid = np.asarray(model.force_residual(record), dtype=float) / float(model.gain)
-    if resid.ndim == 2:
-        return _bootstrap_multi(record, model, resid, n, random_state)
-    if not hasattr(record, "F"):
-        raise ConfigError("the residual bootstrap handles one-equation templates on one forcing column; "
-                          "use kind='seeds' for this template")
-    F = np.asarray(record.F, dtype=float)
-    f_hat = F + resid  # the residual is x'' + ... - g F, so F - F_hat = -resid / g
+    names = _input_columns(record, model, resid)
+    resid = resid.reshape(resid.shape[0], len(names))
+    signals = getattr(record, "forces", None) or {"F": record.F}
+    # the residual is x'' + ... - g F, so F - F_hat = -resid / g
+    fitted = {nm: np.asarray(signals[nm], dtype=float) + resid[:, e] for e, nm in enumerate(names)}
     rng = np.random.default_rng(random_state)
     out = []
     for _ in range(n):
-        signs = rng.choice([-1.0, 1.0], size=F.size)
-        out.append(record.replace(F=f_hat - signs * resid))
+        # one sign per sample, shared by the equations: keeps the noise's correlation between them
+        signs = rng.choice([-1.0, 1.0], size=resid.shape[0])
+        new = {nm: fitted[nm] - signs * resid[:, e] for e, nm in enumerate(names)}
+        out.append(record.replace(forces={**record.forces, **new}) if names != ["F"] else record.replace(F=new["F"]))
     return out
 
 
-def _bootstrap_multi(record, model, resid, n: int, random_state: int) -> list:
-    """The wild bootstrap for several equations, each driven by its own forcing column.
-
-    One sign per sample, shared by the equations, keeps the noise's correlation between them.
-    """
+def _input_columns(record, model, resid) -> list[str]:
+    """The forcing column of each equation: ["F"] for one equation on a Trajectory, the symbols of
+    the equations' inputs for several (each must be a forcing column of its own, as two-dof's)."""
+    if resid.ndim == 1:
+        if not hasattr(record, "F"):
+            raise ConfigError("the residual bootstrap handles one-equation templates on one forcing column; "
+                              "use kind='seeds' for this template")
+        return ["F"]
     import sympy
 
     forces = getattr(record, "forces", None)
@@ -103,16 +107,7 @@ def _bootstrap_multi(record, model, resid, n: int, random_state: int) -> list:
             any(nm not in forces for nm in names) or resid.shape[1] != len(names):
         raise ConfigError("the residual bootstrap needs every equation to have one forcing column of its own "
                           "(as two-dof: F1, F2); use kind='seeds' for this template")
-    rng = np.random.default_rng(random_state)
-    # residual = known + curves - g * input, so input - input_hat = -residual / g
-    fitted = {nm: np.asarray(forces[nm], dtype=float) + resid[:, e] for e, nm in enumerate(names)}
-    out = []
-    for _ in range(n):
-        signs = rng.choice([-1.0, 1.0], size=resid.shape[0])
-        new = dict(forces)
-        new.update({nm: fitted[nm] - signs * resid[:, e] for e, nm in enumerate(names)})
-        out.append(record.replace(forces=new))
-    return out
+    return names
 
 
 def fit_ensemble(estimator, record, n: int = 8, *, kind: str = "bootstrap", random_state: int | None = None) -> Ensemble:

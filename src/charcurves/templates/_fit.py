@@ -100,7 +100,7 @@ def fit_neural_template(records: Sequence, template: EquationTemplate, curves: d
     from ..curves._fitted import NeuralFittedCurve
     from ..curves._neural import NeuralCurve
     from ..fitting._gradient import BatchedProblem, CurveTerm
-    from ..fitting._neural_fit import _merge_logs, _warm_start, chunk_log, torch_threads, train_with_preset
+    from ..fitting._neural_fit import chunk_log, start_weights, train_batched
 
     if len(records) != len(seeds):
         raise ConfigError("give one seed per trajectory")
@@ -170,28 +170,18 @@ def fit_neural_template(records: Sequence, template: EquationTemplate, curves: d
                              gain_on=template.gain_on, bias=bias, lambda_sym=preset.lambda_sym, weight_decay=0.0,
                              bayesian=preset.bayesian, decay_groups=preset.decay_groups)
 
-    thetas = []
-    for seed in seeds:
-        for r in range(R):
-            gen = torch.Generator().manual_seed(int(seed) * 7919 + r)
-            parts = [curves[nm].init(1, gen, dtype) for nm in names]
-            parts += [const_spec.init(1, gen, dtype) for _ in const_names]
-            if template.free_gain:
-                parts.append(torch.full((1, 1), 1.0 if force_side else float(template.gain), dtype=dtype))
-            if bias:
-                parts.append(torch.zeros(1, 1, dtype=dtype))
-            thetas.append(torch.cat(parts, dim=1))
-    theta0 = torch.cat(thetas, dim=0).to(device)
-    if preset.warm_start:
-        theta0 = _warm_start(problem, theta0)
+    def draw(gen):
+        parts = [curves[nm].init(1, gen, dtype) for nm in names]
+        parts += [const_spec.init(1, gen, dtype) for _ in const_names]
+        if template.free_gain:
+            parts.append(torch.full((1, 1), 1.0 if force_side else float(template.gain), dtype=dtype))
+        if bias:
+            parts.append(torch.zeros(1, 1, dtype=dtype))
+        return parts
 
-    with torch_threads(threads):
-        # Ctrl-C ends the whole call as in the separable fit (see train_in_chunks)
-        theta, logs = train_with_preset(problem, theta0, preset, device=device, chunk_models=chunk_models,
-                                        progress=progress)
-        log = _merge_logs([lg for _, _, lg in logs])
-        with torch.no_grad():
-            total_loss = torch.cat([sub.loss(theta[s:s + sub.K]) for s, sub, _ in logs]).double().cpu().numpy()
+    theta, logs, log, total_loss = train_batched(problem, start_weights(seeds, R, draw).to(device), preset,
+                                                 threads=threads, device=device, chunk_models=chunk_models,
+                                                 progress=progress)
     elapsed = time.perf_counter() - t_start
     theta = theta.double().cpu()
     one = torch.ones(1, dtype=torch.float64)

@@ -381,17 +381,8 @@ class EquationTemplate:
         return self._rng_points
 
     def _eval(self, expr, pts=None) -> np.ndarray:
-        import sympy as sp
-
         pts = self._points() if pts is None else pts
-        expr = sp.sympify(expr)
-        n = len(next(iter(pts.values()))) if pts else 12
-        syms = sorted(expr.free_symbols, key=lambda s: s.name)
-        if not syms:
-            return np.full(n, float(expr))
-        f = sp.lambdify(syms, expr, modules="numpy")
-        with np.errstate(all="ignore"):
-            return np.broadcast_to(np.asarray(f(*[pts[s.name] for s in syms]), dtype=float), (n,)).copy()
+        return _evaluate(expr, pts, len(next(iter(pts.values()))) if pts else 12)
 
     def _function_of(self, r, u) -> bool:
         """Whether ``r`` is (locally) a function of ``u``: their gradients are parallel everywhere."""
