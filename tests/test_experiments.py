@@ -40,7 +40,7 @@ from charcurves.metrics._ensemble import (
     performance_percent,
 )
 from charcurves.systems import get_system
-from charcurves.templates import SeparableTemplate
+from charcurves.templates import get_template
 
 #: A neural preset that trains in a fraction of a second (the sweep machinery is under test, not accuracy).
 TINY = PRESETS["default"].replace(n_starts=1, adam_steps=20, lm_max_iter=3)
@@ -48,7 +48,7 @@ TINY = PRESETS["default"].replace(n_starts=1, adam_steps=20, lm_max_iter=3)
 
 def symbolic_model(f1, f2, domain=(-2, 2)):
     curves = {"f1": SymbolicFittedCurve("f1", "x'", domain, f1), "f2": SymbolicFittedCurve("f2", "x", domain, f2)}
-    return FittedModel(SeparableTemplate(), "test", curves, 1.0, 0.0, 0.0)
+    return FittedModel(get_template("separable"), "test", curves, 1.0, 0.0, 0.0)
 
 
 def count_per_key(path):

@@ -90,7 +90,7 @@ def test_even_curves_start_away_from_their_stationary_point_and_expose_their_out
     import torch
 
     from charcurves.curves import NeuralCurve
-    from charcurves.curves._neural import EVEN_INPUT_WEIGHTS
+    from charcurves.curves import EVEN_INPUT_WEIGHTS
 
     even = NeuralCurve(hidden=(8,), activation="softplus", symmetry="even")
     plain = NeuralCurve(hidden=(8,), activation="softplus", symmetry="none")

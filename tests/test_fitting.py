@@ -187,7 +187,7 @@ def test_jump_layout_is_decided_per_record_in_a_batch(duffing):
 
 
 def test_decay_groups_shared_per_curve_and_per_layer(duffing, duffing_20db):
-    from charcurves.fitting._presets import get_preset
+    from charcurves.fitting import get_preset
 
     fits = {g: cc.fit(duffing_20db, method="nn-cc+sym", random_state=0, threads=1,
                       preset=get_preset("default").replace(decay_groups=g))
@@ -224,15 +224,15 @@ def test_auto_jump_stays_off_without_sticking_and_in_the_paper_preset(duffing_20
 
 @pytest.mark.parametrize("variant", ["smooth", "scripts"])
 def test_auto_jump_detects_dry_friction_without_sticking(variant):
-    from charcurves.fitting._estimator import JUMP_F_THRESHOLD, dry_friction_test
+    from charcurves.fitting import JUMP_F_THRESHOLD, dry_friction_test
     from charcurves.systems import get_system
-    from charcurves.templates import SeparableTemplate
+    from charcurves.templates import get_template
 
     system = get_system("stick-slip", variant)
     clean = system.simulate()
     assert not system.sticking_mask(clean).any()
     for snr in (40, 0):
-        F, mu = dry_friction_test(corrupt(clean, snr, seed=1), SeparableTemplate())
+        F, mu = dry_friction_test(corrupt(clean, snr, seed=1), get_template("separable"))
         assert F > JUMP_F_THRESHOLD and mu > 0.3
     model = cc.fit(corrupt(clean, 20, seed=0), method="nn-cc+sym", random_state=0, threads=1)
     assert model.curves["f1"].spec.jump
@@ -241,12 +241,12 @@ def test_auto_jump_detects_dry_friction_without_sticking(variant):
 
 
 def test_no_jump_is_detected_on_smooth_curves(duffing):
-    from charcurves.fitting._estimator import JUMP_F_THRESHOLD, dry_friction_test
-    from charcurves.templates import SeparableTemplate
+    from charcurves.fitting import JUMP_F_THRESHOLD, dry_friction_test
+    from charcurves.templates import get_template
 
     _, clean = duffing
     for seed in range(5):
-        F, _ = dry_friction_test(corrupt(clean, 0, seed=seed), SeparableTemplate())
+        F, _ = dry_friction_test(corrupt(clean, 0, seed=seed), get_template("separable"))
         assert F < JUMP_F_THRESHOLD
 
 

@@ -18,8 +18,8 @@ import pytest
 
 import charcurves as cc
 from charcurves._errors import ModelFileError
-from charcurves.curves._fitted import SymbolicFittedCurve
-from charcurves.fitting._model import MODEL_SCHEMA, FittedModel, load_model, validate_model_document
+from charcurves.curves import SymbolicFittedCurve
+from charcurves.fitting import MODEL_SCHEMA, FittedModel, load_model, validate_model_document
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "model-format.md"
 
@@ -236,8 +236,8 @@ def test_every_parser_of_closed_forms_refuses_costly_text_quickly(text):
 
     from charcurves._errors import ConfigError
     from charcurves.curves import parse_basis_function
-    from charcurves.curves._fitted import BasisFittedCurve
-    from charcurves.symbolic._engine import parse_infix
+    from charcurves.curves import BasisFittedCurve
+    from charcurves.symbolic import parse_infix
 
     calls = [
         lambda: parse_basis_function(text),
@@ -380,7 +380,7 @@ def test_ctrl_c_in_a_chunked_fit_leaves_the_later_chunks_untrained(family):
 def test_ctrl_c_during_post_sr_writes_the_finished_fit(tmp_path, record, monkeypatch, capsys):
     """Operon's search does not watch for Ctrl-C; the interrupt arrives when it returns. The
     finished fit before post-SR is written, and what was skipped is said."""
-    import charcurves.symbolic._distill as distill_module
+    import charcurves.fitting._post_sr as distill_module
     from charcurves.cli import main
 
     def interrupted_search(*args, **kwargs):
@@ -414,7 +414,7 @@ def test_ctrl_c_during_output_error_refinement_writes_the_finished_fit(tmp_path,
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(output_error, "refine_output_error", interrupted)
+    monkeypatch.setattr(output_error, "output_error_fit", interrupted)
     csv = tmp_path / "d.csv"
     record.to_csv(csv)
     out = tmp_path / "fit"
@@ -431,11 +431,11 @@ def test_ctrl_c_during_output_error_refinement_writes_the_finished_fit(tmp_path,
 
 
 def test_ctrl_c_during_band_refits_writes_the_main_fit(tmp_path, record, monkeypatch, capsys):
-    import charcurves.selection._bands as bands_module
+    import charcurves.fitting._ensemble as bands_module
     from charcurves.cli import main
 
     class Interrupted:
-        def _fit_many_raw(self, *args, **kwargs):
+        def resolve(self, *args, **kwargs):
             raise KeyboardInterrupt
 
     monkeypatch.setattr(bands_module, "_member_estimator", lambda estimator, point: Interrupted())
@@ -457,7 +457,7 @@ def test_ctrl_c_during_band_refits_writes_the_main_fit(tmp_path, record, monkeyp
 def test_band_refits_stopped_by_ctrl_c_make_no_ensemble(record, monkeypatch):
     """Neural refits answer Ctrl-C by returning their best weights so far: fit_ensembles must not
     turn those into bands; the interrupt goes on to the caller."""
-    import charcurves.fitting._gradient as gradient
+    import charcurves.fitting._train as gradient
     from charcurves.selection import fit_ensembles
 
     real_train = gradient.train

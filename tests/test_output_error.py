@@ -12,14 +12,16 @@ from charcurves import ConfigError, DataError
 from charcurves.curves import BasisFittedCurve, SymbolicFittedCurve
 from charcurves.data import Trajectory, estimate_derivatives
 from charcurves.fitting import FittedModel
-from charcurves.fitting._output_error import (
-    closed_form_text,
+from charcurves.fitting import closed_form_text, refine_output_error
+from charcurves.simulate import (
     estimate_initial_state,
     free_run_error,
-    refine_output_error,
+    rk4_sampled,
+    simulate_model,
+    simulate_sampled,
+    stage_inputs,
 )
-from charcurves.simulate import rk4_sampled, simulate_model, simulate_sampled, stage_inputs
-from charcurves.templates import SeparableTemplate
+from charcurves.templates import get_template
 
 #: x'' + c x' + k1 x + k3 x^3 + b = g u, about 9 samples per resonance period at DT (as the Silverbox)
 TRUE = {"c": 0.4, "k1": 1.0, "k3": 0.5, "g": 2.0, "b": 0.05}
@@ -45,7 +47,7 @@ def true_accel(x, v, u):
 
 def symbolic_model(f1: str, f2: str, gain: float, offset: float = 0.0, free_gain: bool = True) -> FittedModel:
     curves = {"f1": SymbolicFittedCurve("f1", "x'", (-3, 3), f1), "f2": SymbolicFittedCurve("f2", "x", (-3, 3), f2)}
-    return FittedModel(SeparableTemplate(free_gain=free_gain), "test", curves, gain, offset, 0.0)
+    return FittedModel(get_template("separable", free_gain=free_gain), "test", curves, gain, offset, 0.0)
 
 
 @pytest.fixture(scope="module")
@@ -149,7 +151,7 @@ def test_refinement_recovers_duffing_coefficients_from_a_poor_start(duffing_reco
 def test_api_refine_option_on_a_parametric_fit(duffing_record):
     traj, _ = duffing_record
     kwargs = dict(method="parametric", basis="f1=z; f2=z, z**3", free_gain=True, derivatives="spectral")
-    plain = cc.fit(traj, **kwargs)
+    plain = cc.fit(traj, refine="none", **kwargs)
     refined = cc.fit(traj, refine="output-error", **kwargs)
     short = traj.slice(slice(0, 600))
     auto = cc.fit(short, refine="auto", **kwargs)  # free gain, closed forms, estimated derivatives: refined
@@ -195,9 +197,6 @@ def test_refinement_options_are_checked(duffing_record):
         cc.fit(traj, method="parametric", free_gain=True, refine="output-error", refine_options={"segments": 3})
     with pytest.raises(ConfigError, match="unknown refine 'simulation'; choose one of none, output-error, auto"):
         cc.fit(traj, method="parametric", refine="simulation")
-    with pytest.raises(ConfigError, match="refine='output-error' needs closed-form curves, but nn-cc\\+sym learns "
-                                          "neural curves; use nn-cc\\+sym\\+post-sr"):
-        cc.fit(traj, method="nn-cc+sym", refine="output-error")
     with pytest.raises(ConfigError, match="segment_length must be an integer >= 16"):
         refine_output_error(model, traj, segment_length=4)
     uneven = Trajectory(t=np.r_[np.arange(100) * DT, 100 * DT + 0.3 + np.arange(100) * DT], x=np.zeros(200),
@@ -257,7 +256,7 @@ def test_cli_refines_by_default_for_free_gain_closed_forms(tmp_path, duffing_csv
     assert proc.returncode == 0, proc.stderr
     val = json.loads((tmp_path / "val" / "validation.json").read_text())
     assert [s["rows"] for s in val["segments"]] == [[0, 1500], [1500, 3000]]
-    assert val["hold"] == "linear" and val["substeps"] == 4
+    assert val["hold"] == "linear" and val["substeps"] == oe["substeps"]  # as refined
     for seg in val["segments"]:
         assert seg["status"] == "ok" and seg["rmse_relative_to_std"] < 0.015
     assert (tmp_path / "val" / "validation.png").stat().st_size > 10000
@@ -274,9 +273,6 @@ def test_cli_refines_by_default_for_free_gain_closed_forms(tmp_path, duffing_csv
                                  "bandlimited"),
     (["--refine-substeps", "0"], "charcurves: error: substeps must be a positive integer (RK4 steps per sample), "
                                  "got 0"),
-    (["--method", "nn-cc", "--refine", "output-error"],
-     "charcurves: error: refine='output-error' needs closed-form curves, but nn-cc learns neural curves; use "
-     "nn-cc+post-sr (or parametric, poly-cc, sindy), or refine='none'"),
 ])
 def test_cli_bad_refine_values(tmp_path, duffing_csv, extra, message, cli):
     args = ["fit", duffing_csv, "--x-col", "y", "--force-col", "u", "--sample-rate", 1 / DT, "--free-gain",
@@ -294,15 +290,17 @@ def test_cli_validate_errors(tmp_path, duffing_csv, cli):
 
 def test_symbolic_curves_get_one_coefficient_per_term():
     """Integer and implicit coefficients are refined too; constants and exponents stay."""
-    from charcurves.fitting._output_error import _Parametrised
+    import torch
+
+    from charcurves.curves import trainable
 
     model = symbolic_model("0.3*z + 2*tanh(50.0*z)", "z**3 - z + 0.5", 1.5, 0.2)
-    par = _Parametrised(model)
-    assert par.labels == ["f1:tanh(50.0*z)", "f1:tanh(50.0*z)#0", "f1:z", "f2:z**3", "f2:z", "g", "b"]
-    assert par.theta0.tolist() == [2.0, 50.0, 0.3, 1.0, -1.0, 1.5, 0.2]
-    x, v, u = np.array([0.3, -1.0]), np.array([0.2, 0.01]), np.array([1.0, -0.5])
-    assert np.allclose(par.accel(par.theta0)(x, v, u), model.acceleration(0.0, x, v, u), rtol=1e-13)
-    rebuilt = par.build(par.theta0 * 1.1)
-    assert float(rebuilt.curves["f2"](0.0)) == pytest.approx(0.5)  # the constant is not scaled
-    assert float(rebuilt.curves["f1"](0.1)) == pytest.approx(0.33 * 0.1 + 2.2 * np.tanh(5.5), rel=1e-12)
-    assert rebuilt.gain == pytest.approx(1.65) and rebuilt.offset == pytest.approx(0.22)
+    f1, f2 = trainable(model.curves["f1"]), trainable(model.curves["f2"])
+    assert f1.labels + f2.labels == ["f1:tanh(50.0*z)", "f1:tanh(50.0*z)#0", "f1:z", "f2:z**3", "f2:z"]
+    assert f1.theta.tolist() == [[2.0, 50.0, 0.3]] and f2.theta.tolist() == [[1.0, -1.0]]
+    z = torch.tensor([0.3, -1.0, 0.01], dtype=torch.float64)
+    for name, rf in (("f1", f1), ("f2", f2)):
+        values = rf.param.evaluate(torch.as_tensor(rf.theta), z).numpy()[0] + rf.shift
+        assert np.allclose(values, model.curves[name](z.numpy()), rtol=1e-13)
+    assert float(f2.rebuild(f2.theta * 1.1)(0.0)) == pytest.approx(0.5)  # the constant is not scaled
+    assert float(f1.rebuild(f1.theta * 1.1)(0.1)) == pytest.approx(0.33 * 0.1 + 2.2 * np.tanh(5.5), rel=1e-12)

@@ -15,8 +15,8 @@ import charcurves as cc
 from charcurves import ConfigError
 from charcurves.data import Trajectory, corrupt
 from charcurves.fitting import load_model
-from charcurves.fitting._poly import fit_poly
-from charcurves.fitting._sindy import fit_sindy, l0_weight
+from charcurves.curves import SparseLibrary
+from charcurves.fitting import l0_weight
 from charcurves.metrics import curve_errors
 from charcurves.templates import get_template
 
@@ -107,7 +107,7 @@ def test_poly_cc_free_gain(duffing):
 def test_poly_cc_far_from_zero_range_keeps_the_mapped_form(duffing):
     system, clean = duffing
     shifted = clean.replace(x=np.asarray(clean.x) + 100.0)
-    model = fit_poly(shifted, get_template("separable", gauge="f1"), options={"degree": 10})
+    model = cc.fit(shifted, method="poly-cc", gauge="f1", options={"degree": 10})
     assert model.info["expression_form"]["f2"] == "mapped"
     assert model.info["expression_form"]["f1"] == "power"
     truth = system.true_curves()["f2"]
@@ -121,7 +121,7 @@ def test_poly_cc_far_from_zero_range_keeps_the_mapped_form(duffing):
 
 def test_poly_symmetry_keeps_only_the_parity_of_the_unmapped_argument(even_record):
     traj, truth = even_record
-    model = fit_poly(traj, get_template("separable"), symmetry={"f1": "odd", "f2": "even"})
+    model = cc.fit(traj, method="poly-cc", symmetry={"f1": "odd", "f2": "even"})
     assert _powers(model.curves["f1"].expression()) <= {1, 3, 5, 7, 9}
     assert _powers(model.curves["f2"].expression()) <= {0, 2, 4, 6, 8, 10}
     assert model.info["mapping"]["f1"]["center"] == 0.0
@@ -217,7 +217,8 @@ def test_sindy_errors(duffing, monkeypatch):
     with pytest.raises(ConfigError, match="sindy-cc fixes the gain; use sindy for a free gain"):
         cc.fit(clean, method="sindy-cc", free_gain=True)
     with pytest.raises(ConfigError, match="use sindy-cc for a fixed gain"):
-        fit_sindy(clean, get_template("separable"), method="sindy")
+        cc.CharacteristicCurves(cc.Separable(SparseLibrary(optimizer="stlsq"), SparseLibrary(optimizer="stlsq"))
+                                ).fit(clean)
     with pytest.raises(ConfigError, match="unknown SINDy option"):
         cc.fit(clean, method="sindy", options={"rescaling": "scripts"})
     with pytest.raises(ConfigError, match="threshold"):

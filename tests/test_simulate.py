@@ -10,12 +10,12 @@ from charcurves.curves import SymbolicFittedCurve
 from charcurves.fitting import FittedModel, PRESETS
 from charcurves.metrics import largest_lyapunov_exponent, separation_time, trajectory_rmse
 from charcurves.simulate import simulate_model, sinusoidal_forcing
-from charcurves.templates import SeparableTemplate
+from charcurves.templates import get_template
 
 
 def symbolic_model(f1, f2, gain=1.0, offset=0.0, domain=(-2, 2)):
     curves = {"f1": SymbolicFittedCurve("f1", "x'", domain, f1), "f2": SymbolicFittedCurve("f2", "x", domain, f2)}
-    return FittedModel(SeparableTemplate(), "test", curves, gain, offset, 0.0)
+    return FittedModel(get_template("separable"), "test", curves, gain, offset, 0.0)
 
 
 def test_a_model_with_the_true_curves_reproduces_the_system(duffing):
@@ -127,7 +127,7 @@ def stick_slip():
 def stick_slip_model(f1, system, domain=(-0.9, 0.9)):
     curves = {"f1": SymbolicFittedCurve("f1", "x'", domain, f1),
               "f2": SymbolicFittedCurve("f2", "x", (-1.3, 1.3), f"{system.k}*z")}
-    return FittedModel(SeparableTemplate(), "test", curves, 1.0, 0.0, 0.0)
+    return FittedModel(get_template("separable"), "test", curves, 1.0, 0.0, 0.0)
 
 
 @pytest.mark.parametrize("friction", ["sign(z)", "tanh(1e5*z)"])

@@ -9,23 +9,21 @@ import pytest
 import sympy as sp
 
 from charcurves._errors import ConfigError
-from charcurves.curves._fitted import SymbolicFittedCurve
+from charcurves.curves import SymbolicFittedCurve
 from charcurves.data import Trajectory
 from charcurves.symbolic import (
     FrontEntry,
     PySREngine,
     decompose,
     distill_curve,
-    distill_model,
     expression_complexity,
-    fit_sr,
-    fit_sr_cc,
     make_engine,
     polish_constants,
     select_model,
 )
-from charcurves.symbolic._engine import parse_infix
-from charcurves.templates import SeparableTemplate
+from charcurves.fitting import distill_model, fit_sr, fit_sr_cc
+from charcurves.symbolic import parse_infix
+from charcurves.templates import get_template
 
 Z = sp.Symbol("z")
 
@@ -133,8 +131,8 @@ def test_post_sr_friction_curve_gives_steep_tanh():
 
 def test_post_sr_neural_jump_curve_by_parts():
     """A neural curve with a learned jump: the jump is kept as muN tanh(k z), SR fits the rest."""
-    from charcurves.curves._fitted import NeuralFittedCurve
-    from charcurves.curves._neural import NeuralCurve
+    from charcurves.curves import NeuralFittedCurve
+    from charcurves.curves import NeuralCurve
 
     spec = NeuralCurve(hidden=(4,), symmetry="odd", jump=True)
     sl = spec.slices()
@@ -157,10 +155,10 @@ def test_post_sr_neural_jump_curve_by_parts():
 
 
 def test_distill_model_gauge_info_and_roundtrip(tmp_path):
-    from charcurves.curves._fitted import BasisFittedCurve
-    from charcurves.fitting._model import FittedModel, load_model
+    from charcurves.curves import BasisFittedCurve
+    from charcurves.fitting import FittedModel, load_model
 
-    tmpl = SeparableTemplate()
+    tmpl = get_template("separable")
     # f2 carries a constant 0.05 that the gauge must move: f2(0) = 0 afterwards
     curves = {"f1": BasisFittedCurve("f1", "x'", (-1.0, 1.0), ["z"], [0.3]),
               "f2": BasisFittedCurve("f2", "x", (-1.5, 1.5), ["z", "z**3", "1"], [-1.0, 1.0, 0.05])}
@@ -183,7 +181,7 @@ def test_distill_model_gauge_info_and_roundtrip(tmp_path):
 # ------------------------------------------------------------------ SR and SR-CC
 def test_fit_sr_decomposable_on_duffing(duffing):
     system, clean = duffing
-    model = fit_sr(clean, SeparableTemplate(), symmetry={"f1": "none", "f2": "none"}, options={},
+    model = fit_sr(clean, get_template("separable"), symmetry={"f1": "none", "f2": "none"}, options={},
                    sr_options={}, random_state=0, method="sr")
     assert model.info["decomposable"] and model.info["mixed_terms"] == []
     t1, t2 = _terms(model.curves["f1"].expression()), _terms(model.curves["f2"].expression())
@@ -196,7 +194,7 @@ def test_fit_sr_flags_mixed_term(duffing):
     x, v, F = (np.asarray(c) for c in (clean.x, clean.v, clean.F))
     a = F - 0.3 * v - (-x + x**3) - 0.3 * x * v
     traj = Trajectory(clean.t, x, F, v, a)
-    model = fit_sr(traj, SeparableTemplate(), symmetry=None, options={}, sr_options={}, random_state=0, method="sr")
+    model = fit_sr(traj, get_template("separable"), symmetry=None, options={}, sr_options={}, random_state=0, method="sr")
     assert model.info["decomposable"] is False
     assert any("x*x'" in m or "x'*x" in m for m in model.info["mixed_terms"])
     # the separable part is still returned as symbolic curves
@@ -207,7 +205,7 @@ def test_fit_sr_stick_slip_gets_friction_law():
     from charcurves.systems import get_system
 
     clean = get_system("stick-slip").simulate()
-    model = fit_sr(clean, SeparableTemplate(), symmetry=None, options={}, sr_options={}, random_state=0, method="sr")
+    model = fit_sr(clean, get_template("separable"), symmetry=None, options={}, sr_options={}, random_state=0, method="sr")
     assert model.info["operators"] == ["add", "sub", "mul", "tanh"]  # sticking -> tanh allowed
     t1 = _terms(model.curves["f1"].expression())
     steps = [c for b, c in t1.items() if isinstance(b, sp.tanh)]
@@ -218,7 +216,7 @@ def test_fit_sr_stick_slip_gets_friction_law():
 
 def test_fit_sr_cc_separable_by_construction(duffing):
     system, clean = duffing
-    model = fit_sr_cc(clean, SeparableTemplate(), symmetry=None, options={}, sr_options={}, random_state=0,
+    model = fit_sr_cc(clean, get_template("separable"), symmetry=None, options={}, sr_options={}, random_state=0,
                       method="sr-cc")
     assert model.info["decomposable"] and model.info["mixed_terms"] == []
     for name, c in model.curves.items():
@@ -234,7 +232,7 @@ def test_fit_sr_free_gain(duffing):
     _, clean = duffing
     F = np.asarray(clean.F)
     traj = Trajectory(clean.t, clean.x, F / 2.0, clean.v, clean.a)  # true gain 2
-    model = fit_sr(traj, SeparableTemplate(free_gain=True), symmetry=None, options={}, sr_options={},
+    model = fit_sr(traj, get_template("separable", free_gain=True), symmetry=None, options={}, sr_options={},
                    random_state=0, method="sr")
     assert model.gain == pytest.approx(2.0, rel=0.02)
 
@@ -293,7 +291,7 @@ def test_post_sr_never_makes_sindy_jump_stand_in_worse():
     import charcurves as cc
     from charcurves.data._noise import corrupt
     from charcurves.metrics import curve_errors
-    from charcurves.symbolic._distill import DATA_LOSS_TOLERANCE
+    from charcurves.fitting import DATA_LOSS_TOLERANCE
     from charcurves.systems import get_system
 
     system = get_system("stick-slip")

@@ -11,7 +11,7 @@ from charcurves.cli import main
 from charcurves.data import Trajectory, corrupt
 from charcurves.fitting import CharacteristicCurves
 from charcurves.selection import Ensemble, detect_symmetry, parity_tests
-from charcurves.selection._symmetry import PARITY_THRESHOLD, _method_for
+from charcurves.fitting._symmetry import PARITY_THRESHOLD, _method_for
 from charcurves.systems import get_system
 
 

@@ -18,21 +18,47 @@ logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 # public name -> module that defines it (loaded on first attribute access)
 _LAZY = {
+    # data
     "Trajectory": "charcurves.data",
     "MultiTrajectory": "charcurves.data",
     "corrupt": "charcurves.data",
     "add_noise": "charcurves.data",
     "estimate_derivatives": "charcurves.data",
+    "Differentiator": "charcurves.data",
+    "SavitzkyGolay": "charcurves.data",
+    "Spectral": "charcurves.data",
+    "SmoothingSpline": "charcurves.data",
+    "Spline": ("charcurves.data", "SmoothingSpline"),
+    "FiniteDifference": "charcurves.data",
+    "Given": "charcurves.data",
     "get_system": "charcurves.systems",
-    "SeparableTemplate": "charcurves.templates",
+    # curve representations
+    "AbstractCurve": "charcurves.curves",
+    "LinearCurve": "charcurves.curves",
+    "Neural": "charcurves.curves",
+    "Polynomial": "charcurves.curves",
+    "SparseLibrary": "charcurves.curves",
+    "Basis": "charcurves.curves",
+    "Symbolic": "charcurves.curves",
+    "register_curve": "charcurves.curves",
+    "NeuralCurve": "charcurves.curves",
+    # templates
+    "Separable": "charcurves.templates",
+    "PositionDamping": "charcurves.templates",
+    "FirstOrder": "charcurves.templates",
+    "TwoDOF": "charcurves.templates",
+    "Equation": "charcurves.templates",
+    "EquationTemplate": "charcurves.templates",
+    # fitting
     "CharacteristicCurves": "charcurves.fitting",
+    "EquationError": "charcurves.fitting",
+    "OutputError": "charcurves.fitting",
     "FittedModel": "charcurves.fitting",
     "fit": "charcurves.fitting",
     "load_model": "charcurves.fitting",
     "TrainingPreset": "charcurves.fitting",
     "PRESETS": "charcurves.fitting",
     "METHODS": "charcurves.fitting",
-    "NeuralCurve": "charcurves.curves",
     "curve_rmse": "charcurves.metrics",
     "curve_errors": "charcurves.metrics",
     "plot_curves": "charcurves.report",
@@ -51,7 +77,8 @@ __all__ = sorted(_LAZY) + ["__version__"]
 
 def __getattr__(name: str):
     if name in _LAZY:
-        value = getattr(importlib.import_module(_LAZY[name]), name)
+        module, attr = _LAZY[name] if isinstance(_LAZY[name], tuple) else (_LAZY[name], name)
+        value = getattr(importlib.import_module(module), attr)
         globals()[name] = value
         return value
     raise AttributeError(f"module 'charcurves' has no attribute {name!r}")

@@ -33,7 +33,7 @@ def _rows(text: str) -> slice:
 
 
 def _build_parser() -> argparse.ArgumentParser:
-    from .fitting._estimator import METHODS
+    from .fitting import METHODS
     from .systems import SYSTEM_NAMES
 
     p = _Parser(prog="charcurves", description="Equation discovery with characteristic curves.")
@@ -244,9 +244,7 @@ def _cmd_simulate(a) -> int:
 
     system = get_system(a.system, a.variant)
     if a.system == "two-dof":  # a multi-DOF record: t,x1,x2,v1,a1,v2,a2,F1,F2
-        from .templates._fit import simulate_multi_cli
-
-        return simulate_multi_cli(system, a, say=_say)
+        return _simulate_multi(system, a)
     traj = system.simulate(t_end=a.t_end, n_points=a.n_points)
     clean = traj
     if a.snr is not None:
@@ -259,6 +257,22 @@ def _cmd_simulate(a) -> int:
     traj.to_csv(a.out)
     _say(f"wrote {a.out}: {a.system} ({a.variant}), {traj.n_samples} samples"
          + (f", SNR {a.snr:g} dB on {a.noise_on}" if a.snr is not None else ", no noise"))
+    return 0
+
+
+def _simulate_multi(system, a) -> int:
+    """``charcurves simulate two-dof``: the multi-DOF record with optional noise on the forcings."""
+    from ._errors import ConfigError
+    from .systems import corrupt_forces
+
+    if a.snr is not None and a.noise_on != "force":
+        raise ConfigError("multi-DOF records take noise on the forcings only; drop --noise-on state")
+    traj = system.simulate(t_end=a.t_end, n_points=a.n_points)
+    if a.snr is not None:
+        traj = corrupt_forces(traj, a.snr, seed=a.seed, reference=a.noise_reference or "std")
+    traj.to_csv(a.out)
+    _say(f"wrote {a.out}: {system.name} ({a.variant}), {traj.n_samples} samples"
+         + (f", SNR {a.snr:g} dB on each forcing" if a.snr is not None else ", no noise"))
     return 0
 
 
@@ -280,13 +294,13 @@ def _fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_
     _check_out_dir(out_dir)  # before the fit: a bad --out must not cost a long run
     t0 = time.perf_counter()
     if bands is not None:
-        from .selection._bands import check_band_options
+        from .fitting import check_band_options
 
         check_band_options(bands, bands_level)  # before the fit: a bad option must not cost a long run
     model = est.fit(traj).model_
     if bands is not None and not model.info.get("interrupted"):
-        from .selection import attach_bands, curve_bands, fit_ensembles
-        from .selection._symmetry import resolved_estimator
+        from .fitting import fit_ensembles, resolved_estimator
+        from .selection import attach_bands, curve_bands
 
         _say(f"uncertainty bands: {bands} {bands_kind} refits ...", quiet)
         try:
@@ -354,7 +368,7 @@ def _write_results(model, out_dir, *, method, family, free_gain, truth, figure, 
     for name, value in result.get("scalars", {}).items():  # unknown scalars of user-written templates
         lines.append(f"  {name} = {value:.6g}")
     if "output_error" in model.info:
-        from .fitting._output_error import summary_lines
+        from .fitting import summary_lines
 
         lines += summary_lines(model)
     skipped = _skipped_by_interrupt(model)
@@ -370,7 +384,7 @@ def _write_results(model, out_dir, *, method, family, free_gain, truth, figure, 
 
 
 def _cmd_fit(a) -> int:
-    from .templates._fit import read_record
+    from .templates import read_record
 
     if a.gauge is not None and a.family == "separable" and not a.equation and a.gauge not in ("f1", "f2"):
         raise _UsageError(f"argument --gauge: invalid choice: {a.gauge!r} (the separable family anchors 'f1' or "
@@ -402,7 +416,7 @@ def _cmd_select(a) -> int:
 
 
 def _cmd_validate(a) -> int:
-    from .fitting._output_error import validate_cli
+    from .simulate import validate_cli
 
     for line in validate_cli(a.model, a.csv, rows=a.rows, time_col=a.time_col, x_col=a.x_col, force_col=a.force_col,
                              sample_rate=a.sample_rate, hold=a.hold, substeps=a.substeps, out_dir=a.out):
@@ -458,7 +472,7 @@ def _cmd_demo(a) -> int:
 
 def _cmd_benchmark(a) -> int:
     from .experiments._benchmark import BENCHMARK_SECTIONS, SYSTEMS, parse_name_list, parse_snr_list, run_benchmark
-    from .fitting._estimator import METHODS
+    from .fitting import METHODS
 
     systems = parse_name_list(a.systems, SYSTEMS, "systems")
     methods = parse_name_list(a.methods, tuple(METHODS), "methods") if a.methods is not None else None

@@ -9,10 +9,11 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .._errors import ModelFileError
+from ._expr import parse_basis_function
 from ._neural import NeuralCurve, jump_log_eps
 
-__all__ = ["FittedCurve", "NeuralFittedCurve", "BasisFittedCurve", "SymbolicFittedCurve", "curve_from_spec",
-           "register_curve_kind", "parse_basis_function"]
+__all__ = ["FittedCurve", "NeuralFittedCurve", "BasisFittedCurve", "SymbolicFittedCurve", "LinearFittedCurve",
+           "curve_from_spec", "register_curve_kind"]
 
 
 class FittedCurve(abc.ABC):
@@ -33,6 +34,12 @@ class FittedCurve(abc.ABC):
         self.argument = argument
         self.domain = (float(domain[0]), float(domain[1]))
         self.shift = float(shift)
+        if not (np.all(np.isfinite(self.domain)) and self.domain[0] <= self.domain[1]):
+            raise ModelFileError(f"curve {name}: domain {list(domain)} must be two finite numbers, low <= high; the "
+                                 "model file is corrupted or was edited by hand, re-fit the model")
+        if not np.isfinite(self.shift):
+            raise ModelFileError(f"curve {name}: shift {shift!r} is not finite; the model file is corrupted, "
+                                 "re-fit the model")
 
     @abc.abstractmethod
     def raw(self, z: np.ndarray) -> np.ndarray:
@@ -50,6 +57,25 @@ class FittedCurve(abc.ABC):
     def expression(self):
         """A sympy expression in the symbol ``z`` when the curve is symbolic, else None."""
         return None
+
+    def float_function(self):
+        """The curve as a function of one Python float (fast in fixed-step free runs): closed forms
+        compiled with ``math``, other curves through their numpy evaluation."""
+        expr = self.expression()
+        if expr is not None:
+            import sympy as sp
+
+            try:
+                fn = sp.lambdify(sp.Symbol("z"), expr, modules="math")
+                fn(0.5)
+                return fn
+            except (TypeError, ValueError, NameError, AttributeError, OverflowError, ZeroDivisionError):
+                pass  # e.g. sign() has no math counterpart: fall back to numpy
+
+        def f(z):
+            return float(np.asarray(self(np.array([z], dtype=float))).reshape(-1)[0])
+
+        return f
 
     def grid(self, n: int = 1000) -> np.ndarray:
         return np.linspace(self.domain[0], self.domain[1], n)
@@ -94,6 +120,11 @@ class NeuralFittedCurve(FittedCurve):
             )
         self.in_scale = float(in_scale)
         self.out_scale = float(out_scale)
+        if not (np.isfinite(self.in_scale) and self.in_scale > 0 and np.isfinite(self.out_scale)
+                and self.out_scale != 0 and np.all(np.isfinite(self.theta))):
+            raise ModelFileError(f"curve {name}: input scale {in_scale!r} must be finite and positive, output scale "
+                                 f"{out_scale!r} finite and non-zero, and the weights finite; the model file is "
+                                 "corrupted or was edited by hand, re-fit the model")
 
     @property
     def pinned_at_zero(self) -> bool:
@@ -230,6 +261,9 @@ class BasisFittedCurve(FittedCurve):
 
         self.basis = [str(b) for b in basis]
         self.coefficients = np.asarray(coefficients, dtype=float).reshape(-1)
+        if not np.all(np.isfinite(self.coefficients)):
+            raise ModelFileError(f"curve {name}: its coefficients are not all finite; the model file is corrupted or "
+                                 "the fit failed, re-fit the model")
         if self.coefficients.shape[0] != len(self.basis):
             raise ModelFileError(f"curve {name}: {len(self.basis)} basis functions but "
                                  f"{self.coefficients.shape[0]} coefficients; the model file is corrupted")
@@ -268,92 +302,6 @@ class BasisFittedCurve(FittedCurve):
         if key not in arrays:
             raise ModelFileError(f"the coefficients of curve {d['name']} are missing from the model file")
         return cls(d["name"], d["argument"], tuple(d["domain"]), d["basis"], arrays[key], d["shift"])
-
-
-_ALLOWED_FUNCS = ("sin", "cos", "tanh", "exp", "log", "sqrt", "sign", "Abs", "atan", "sinh", "cosh", "tan")
-
-
-_ALLOWED_NAMES = set(_ALLOWED_FUNCS) | {"z", "abs", "pi", "E"}
-_ALLOWED_OPS = {"+", "-", "*", "/", "**", "(", ")", ","}
-
-
-def first_disallowed_token(text: str, name_ok, ops, *, cost_guard: bool = True) -> str | None:
-    """The first token of ``text`` that is not a number, an allowed name (``name_ok(name)``) or an
-    operator in ``ops``; "" when the text cannot be tokenized; None when every token is allowed.
-
-    This is the safety check run before sympy parses text from users, files or engines (sympy's
-    parser evaluates Python code, so nothing else may reach it). With ``cost_guard`` (the default)
-    a text made only of allowed tokens is also refused with a ConfigError when sympy's exact
-    arithmetic on it could hang (``9**9**9``; see ``expression_cost_problem``).
-    """
-    import io
-    import tokenize
-
-    try:
-        tokens = list(tokenize.generate_tokens(io.StringIO(text).readline))
-    except (tokenize.TokenError, IndentationError, SyntaxError):
-        return ""
-    for tok in tokens:
-        if tok.type in (tokenize.NEWLINE, tokenize.NL, tokenize.ENDMARKER, tokenize.NUMBER):
-            continue
-        if tok.type == tokenize.NAME and name_ok(tok.string):
-            continue
-        if tok.type == tokenize.OP and tok.string in ops:
-            continue
-        return tok.string
-    if cost_guard:
-        # lazy: the bounds live with the model loader, which checks files before building curves
-        from .._errors import ConfigError
-        from ..fitting._model import expression_cost_problem
-
-        problem = expression_cost_problem(text)
-        if problem:
-            raise ConfigError(f"{text.strip()[:60]!r} {problem}; write a plain closed form with small exponents "
-                              "such as 'z**3' or 'tanh(50*z)'")
-    return None
-
-
-def _check_tokens(text: str) -> None:
-    """Allow only numbers, the symbol z, known function names and arithmetic: nothing is executed."""
-    from .._errors import ConfigError
-
-    bad = first_disallowed_token(text, _ALLOWED_NAMES.__contains__, _ALLOWED_OPS)
-    if bad == "":
-        raise ConfigError(f"cannot parse {text!r}; write an expression of z such as 'z**3'")
-    if bad is not None:
-        raise ConfigError(
-            f"{text!r} is not a plain expression of z ({bad!r} is not allowed); use z, numbers, "
-            f"+ - * / ** and {', '.join(_ALLOWED_FUNCS)}"
-        )
-
-
-def parse_basis_function(text: str):
-    """Parse a closed form in ``z`` safely: the text is checked token by token before sympy sees it."""
-    import sympy as sp
-    from sympy.parsing.sympy_parser import parse_expr, standard_transformations
-
-    from .._errors import ConfigError
-
-    if not isinstance(text, str) or not text.strip():
-        raise ConfigError(f"empty basis function {text!r}; write e.g. 'z**3' or 'tanh(50*z)'")
-    _check_tokens(text)
-    z = sp.Symbol("z")
-    local = {"z": z, **{name: getattr(sp, name) for name in _ALLOWED_FUNCS}, "abs": sp.Abs, "pi": sp.pi, "E": sp.E}
-    try:
-        expr = parse_expr(text, local_dict=local, global_dict={"Integer": sp.Integer, "Float": sp.Float,
-                                                                "Rational": sp.Rational, "Symbol": sp.Symbol},
-                          transformations=standard_transformations, evaluate=True)
-    except Exception as exc:  # sympy raises many types for bad syntax
-        raise ConfigError(f"cannot parse basis function {text!r} ({type(exc).__name__}); "
-                          "write an expression of z such as 'z**3'") from None
-    if not isinstance(expr, sp.Expr):
-        raise ConfigError(f"basis function {text!r} is not an expression of z")
-    extra = expr.free_symbols - {z}
-    if extra:
-        raise ConfigError(
-            f"basis function {text!r} uses {sorted(map(str, extra))}; write it in the curve's argument z only"
-        )
-    return expr
 
 
 class SymbolicFittedCurve(FittedCurve):
@@ -402,7 +350,77 @@ class SymbolicFittedCurve(FittedCurve):
         return cls(d["name"], d["argument"], tuple(d["domain"]), d["expression"], d["shift"], d.get("meta"))
 
 
-_KINDS = {"neural": NeuralFittedCurve, "basis": BasisFittedCurve, "symbolic": SymbolicFittedCurve}
+class LinearFittedCurve(FittedCurve):
+    """A fitted :class:`~charcurves.curves.LinearCurve` of any kind (also user-written ones):
+    ``constant + sum_k c_k phi_k((z - center) / half_width) + shift``.
+
+    The model file stores the representation's class name and parameters and the coefficients;
+    loading rebuilds the representation through :func:`~charcurves.curves.register_curve` (no code
+    is imported from the file).
+    """
+
+    kind = "linear"
+
+    def __init__(self, name, argument, domain, representation, coefficients, center: float = 0.0,
+                 half_width: float = 1.0, constant: float = 0.0, shift: float = 0.0):
+        super().__init__(name, argument, domain, shift)
+        self.representation = representation
+        self.coefficients = np.asarray(coefficients, dtype=float).reshape(-1)
+        self.center = float(center)
+        self.half_width = float(half_width)
+        self.constant = float(constant)
+        if not (np.isfinite(self.half_width) and self.half_width > 0 and np.isfinite(self.center)):
+            raise ModelFileError(f"curve {name}: the argument scaling (center {center!r}, half width {half_width!r}) "
+                                 "must be finite with a positive half width; the model file is corrupted")
+
+    @property
+    def pinned_at_zero(self) -> bool:
+        return self.center == 0.0 and self.constant == 0.0 and bool(self.representation.pinned_at_zero)
+
+    def raw(self, z):
+        import torch
+
+        z = np.asarray(z, dtype=float)
+        u = torch.as_tensor((z.reshape(-1) - self.center) / self.half_width, dtype=torch.float64)
+        with torch.no_grad():
+            phi = self.representation.features(u).double().numpy()
+        return (phi @ self.coefficients + self.constant).reshape(z.shape)
+
+    def to_spec(self):
+        from ._base import AbstractCurve
+
+        d = self._base_spec()
+        params = self.representation.get_params()
+        if any(isinstance(v, AbstractCurve) for v in params.values()):
+            raise ModelFileError(f"curve {self.name}: nested representations cannot be saved")
+        d.update(representation=type(self.representation).__name__, parameters=_plain(params),
+                 center=self.center, half_width=self.half_width, constant=self.constant)
+        return d, {f"{self.name}.coefficients": self.coefficients}
+
+    @classmethod
+    def from_spec(cls, d, arrays):
+        from ._base import registered_curve
+
+        rep = registered_curve(str(d.get("representation")))(**dict(d.get("parameters") or {}))
+        key = f"{d['name']}.coefficients"
+        if key not in arrays:
+            raise ModelFileError(f"the coefficients of curve {d['name']} are missing from the model file")
+        return cls(d["name"], d["argument"], tuple(d["domain"]), rep, arrays[key], d.get("center", 0.0),
+                   d.get("half_width", 1.0), d.get("constant", 0.0), d["shift"])
+
+
+def _plain(obj):
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, (np.floating, np.integer)):
+        return obj.item()
+    return obj
+
+
+_KINDS = {"neural": NeuralFittedCurve, "basis": BasisFittedCurve, "symbolic": SymbolicFittedCurve,
+          "linear": LinearFittedCurve}
 
 
 def register_curve_kind(cls) -> None:

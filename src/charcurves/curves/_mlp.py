@@ -95,18 +95,28 @@ class BatchedMLP:
                 h = self._act(h)[0]
         return h.squeeze(-1)
 
-    def forward_jacobian(self, theta: torch.Tensor, u: torch.Tensor):
-        """Outputs ``(K, N)`` and their Jacobian ``(K, N, P)`` with respect to ``theta``."""
+    def forward_derivative(self, theta: torch.Tensor, u: torch.Tensor):
+        """Outputs ``(K, N)`` and their derivative with respect to the input ``u`` (forward mode)."""
+        return self.forward_jacobian(theta, u, with_input_derivative=True)[::2]
+
+    def forward_jacobian(self, theta: torch.Tensor, u: torch.Tensor, *, with_input_derivative: bool = False):
+        """Outputs ``(K, N)`` and their Jacobian ``(K, N, P)`` with respect to ``theta``; with
+        ``with_input_derivative`` also ``d outputs / d u`` ``(K, N)`` (propagated forward alongside)."""
         K = theta.shape[0]
         h = u.unsqueeze(-1) if u.dim() == 2 else u.reshape(1, -1, 1).expand(K, -1, 1)
         layers = self._unpack(theta)
         inputs, derivs = [], []
+        dh = torch.ones_like(h) if with_input_derivative else None
         for i, (W, b) in enumerate(layers):
             inputs.append(h)
             z = torch.baddbmm(b, h, W)
+            if dh is not None:
+                dh = torch.bmm(dh, W)
             if i < len(layers) - 1:
                 h, d = self._act(z)
                 derivs.append(d)
+                if dh is not None:
+                    dh = d * dh
             else:
                 h = z
         y = h.squeeze(-1)
@@ -121,4 +131,6 @@ class BatchedMLP:
             blocks[i] = torch.cat([gW, delta], dim=2)
             if i > 0:
                 delta = torch.bmm(delta, W.transpose(1, 2)) * derivs[i - 1]
+        if with_input_derivative:
+            return y, torch.cat(blocks, dim=2), dh.squeeze(-1)
         return y, torch.cat(blocks, dim=2)

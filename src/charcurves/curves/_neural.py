@@ -113,6 +113,11 @@ class NeuralCurve:
         return self.symmetry if self.symmetry_mode == "exact" else "none"
 
     @property
+    def uses_mirror(self) -> bool:
+        """Exact parity evaluates the network at u and -u together (callers may precompute both)."""
+        return self.exact_symmetry != "none"
+
+    @property
     def has_linear(self) -> bool:
         return self.linear_term and self.exact_symmetry != "even"
 
@@ -172,19 +177,26 @@ class NeuralCurve:
         _, J, _ = self._network_jacobian(theta, u, u_both)
         return J[:, :, mlp.n_params - n_last:], slice(mlp.n_params - n_last, mlp.n_params)
 
-    def _network_jacobian(self, theta, u, u_both=None):
-        """The (symmetrised) network part: values ``(K, N)``, Jacobian ``(K, N, n_mlp)``, and ``u`` as ``(K, N)``."""
+    def _network_jacobian(self, theta, u, u_both=None, derivative: bool = False):
+        """The (symmetrised) network part: values ``(K, N)``, Jacobian ``(K, N, n_mlp)``, ``u`` as
+        ``(K, N)`` and, with ``derivative``, the network's derivative in ``u``."""
         th = theta[:, self.slices()["mlp"]]
         if u.dim() == 1:
             u = u.unsqueeze(0).expand(theta.shape[0], -1)
         sym = self.exact_symmetry
         if sym == "none":
-            y, J = self.mlp.forward_jacobian(th, u)
-            return y, J, u
+            out = self.mlp.forward_jacobian(th, u, with_input_derivative=derivative)
+            return (out[0], out[1], u, out[2]) if derivative else (out[0], out[1], u)
         n = u.shape[1]
-        yb, Jb = self.mlp.forward_jacobian(th, torch.cat([u, -u], dim=1) if u_both is None else u_both)
+        out = self.mlp.forward_jacobian(th, torch.cat([u, -u], dim=1) if u_both is None else u_both,
+                                        with_input_derivative=derivative)
+        yb, Jb = out[0], out[1]
         s = -1.0 if sym == "odd" else 1.0
-        return 0.5 * (yb[:, :n] + s * yb[:, n:]), 0.5 * (Jb[:, :n] + s * Jb[:, n:]), u
+        res = (0.5 * (yb[:, :n] + s * yb[:, n:]), 0.5 * (Jb[:, :n] + s * Jb[:, n:]), u)
+        if derivative:  # d/du of h(-u) is -h'(-u)
+            db = out[2]
+            res = (*res, 0.5 * (db[:, :n] - s * db[:, n:]))
+        return res
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, theta: torch.Tensor, u: torch.Tensor, u_both: torch.Tensor | None = None) -> torch.Tensor:
@@ -214,8 +226,47 @@ class NeuralCurve:
 
     def evaluate_jacobian(self, theta: torch.Tensor, u: torch.Tensor, u_both: torch.Tensor | None = None):
         """Values ``(K, N)`` and Jacobian ``(K, N, n_params)``."""
+        return self._evaluate_jacobian(theta, u, u_both, derivative=False)[:2]
+
+    def evaluate_all(self, theta: torch.Tensor, u: torch.Tensor):
+        """Values ``(K, N)``, Jacobian ``(K, N, n_params)`` and the derivative ``d f / d u`` ``(K, N)``
+        (what output-error training needs at every integration stage)."""
+        return self._evaluate_jacobian(theta, u, None, derivative=True)
+
+    def decay_groups(self) -> list[tuple[slice, str]]:
+        """MacKay's groups of the network: each layer's weights and its biases (linear, jump parts free)."""
+        out, start = [], self.slices()["mlp"].start
+        for layer, (fan_in, fan_out) in enumerate(self.mlp.layers, start=1):
+            for kind, size in (("weights", fan_in * fan_out), ("biases", fan_out)):
+                out.append((slice(start, start + size), f"layer {layer} {kind}"))
+                start += size
+        return out
+
+    def linear_parts(self, theta: torch.Tensor, u: torch.Tensor, u_both: torch.Tensor | None = None) -> list:
+        """Parameters that enter linearly and their columns ``(K, N)``, for least-squares starts:
+        the linear part, the jump height (at the current width) and, for exact even curves, the
+        output layer (flagged ``True``: guarded by a small ridge, see the module docstring)."""
         sl = self.slices()
-        y, J, u = self._network_jacobian(theta, u, u_both)
+        out = []
+        if self.exact_symmetry == "even":
+            feats, where = self.output_layer(theta, u, u_both)
+            out += [(where.start + j, feats[:, :, j], True) for j in range(feats.shape[2])]
+        if u.dim() == 1:
+            u = u.unsqueeze(0).expand(theta.shape[0], -1)
+        if "linear" in sl:
+            out.append((sl["linear"].start, u, False))
+        if self.jump:
+            eps = torch.exp(jump_log_eps(theta[:, sl["jump_log_eps"]]))
+            out.append((sl["jump_height"].start, torch.tanh(u / eps), False))
+        return out
+
+    def _evaluate_jacobian(self, theta, u, u_both, derivative: bool):
+        sl = self.slices()
+        if derivative:
+            y, J, u, d = self._network_jacobian(theta, u, u_both, derivative=True)
+        else:
+            y, J, u = self._network_jacobian(theta, u, u_both)
+            d = None
         cols = [J]
         if self.has_linear:
             y = y + theta[:, sl["linear"]] * u
@@ -229,4 +280,8 @@ class NeuralCurve:
             cols.append(th_.unsqueeze(-1))
             # d/d(log eps) of mu*tanh(u/eps) = -mu * sech^2(u/eps) * u/eps, times d(log eps)/d(raw)
             cols.append((-mu * (1 - th_ * th_) * u / eps * _dlog_eps(raw)).unsqueeze(-1))
-        return y, torch.cat(cols, dim=2)
+            if d is not None:
+                d = d + mu * (1 - th_ * th_) / eps
+        if d is not None and self.has_linear:
+            d = d + theta[:, sl["linear"]]
+        return y, torch.cat(cols, dim=2), d

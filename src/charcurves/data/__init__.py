@@ -5,6 +5,7 @@ from ._trajectory import MIN_SAMPLES as MIN_SAMPLES
 from ._trajectory import Trajectory as Trajectory
 from ._trajectory import MultiTrajectory as MultiTrajectory
 from ._noise import add_noise as add_noise
+from ._noise import as_rng as as_rng
 from ._noise import corrupt as corrupt
 from ._noise import noise_sigma as noise_sigma
 from ._noise import snr_to_eta as snr_to_eta
@@ -17,3 +18,7 @@ from ._differentiate import SmoothingSpline as SmoothingSpline
 from ._differentiate import Spectral as Spectral
 from ._differentiate import estimate_derivatives as estimate_derivatives
 from ._differentiate import make_differentiator as make_differentiator
+from ._holds import HOLDS as HOLDS
+from ._holds import check_hold as check_hold
+from ._holds import rk4_sampled as rk4_sampled
+from ._holds import stage_inputs as stage_inputs

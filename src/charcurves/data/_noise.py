@@ -61,7 +61,7 @@ def _as_signal(clean: Any) -> np.ndarray:
     return arr
 
 
-def _as_rng(rng: Any) -> np.random.Generator:
+def as_rng(rng: Any) -> np.random.Generator:
     if isinstance(rng, np.random.Generator):
         return rng
     if rng is None or (isinstance(rng, numbers.Integral) and not isinstance(rng, bool)):
@@ -160,7 +160,7 @@ def add_noise(clean: Any, snr_db: float, rng: Any = None, reference: str = "std"
     (1000,)
     """
     sigma = noise_sigma(clean, snr_db, reference)
-    gen = _as_rng(rng)
+    gen = as_rng(rng)
     arr = np.array(clean, dtype=float)  # a copy, also for SNR = inf
     if sigma == 0.0:
         return arr

@@ -392,7 +392,7 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
     -------
     BenchmarkResult
     """
-    from ..fitting._presets import get_preset
+    from ..fitting import get_preset
     from ._sweep import EXECUTORS, PAPER_SNR_DB, Sweep, run_sweep
 
     t_start = time.perf_counter()
@@ -606,7 +606,7 @@ SENSITIVITY_FULL_EXTRA: tuple[tuple[str, Any], ...] = (("width", 100),)
 
 def _sensitivity(ctx: _Context, extras: _Extras) -> None:
     """Appendix C, feasible part: NN-CC on one 20 dB dataset per system, one setting changed at a time."""
-    from ..fitting._presets import get_preset
+    from ..fitting import get_preset
     from ..metrics import curve_errors
     from ..systems import get_system
 

@@ -148,7 +148,7 @@ class Sweep:
     def __post_init__(self) -> None:
         from ..data._noise import NOISE_TARGETS
         from ..fitting import METHODS
-        from ..fitting._presets import get_preset
+        from ..fitting import get_preset
         from ..systems import get_system
 
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 - frozen dataclass
@@ -199,7 +199,7 @@ class Sweep:
 
     @property
     def preset_name(self) -> str:
-        from ..fitting._presets import PRESETS
+        from ..fitting import PRESETS
 
         p = self.preset
         if isinstance(p, str):
@@ -208,7 +208,7 @@ class Sweep:
         return p.name if named == p else f"{p.name}*"
 
     def _preset_config(self) -> dict | None:
-        from ..fitting._presets import PRESETS
+        from ..fitting import PRESETS
 
         p = self.preset
         if isinstance(p, str) or PRESETS.get(p.name) == p:

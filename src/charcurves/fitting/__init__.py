@@ -1,12 +1,57 @@
-"""Fitters and the named methods of the paper."""
+"""Fitting: objectives, the one fitting path every representation and template goes through, the
+fitted model and its files, and the paper's twelve methods as presets.
 
-from ._estimator import METHODS as METHODS
+Public API
+----------
+CharacteristicCurves(template=..., differentiator=..., objective=..., post_sr=...)   the estimator
+fit(record, method="nn-cc+sym", ...)                       shortcut
+EquationError(), OutputError(...)                          objectives
+FittedModel, load_model                                    fitted models and their files
+METHODS, PRESETS, TrainingPreset                           method and training presets
+fit_ensemble(s), bootstrap_records, detect_symmetry, parity_tests   ensembles and parity tests
+"""
+
+from ._ensemble import ENSEMBLE_KINDS as ENSEMBLE_KINDS
+from ._ensemble import MIN_MEMBERS as MIN_MEMBERS
+from ._ensemble import Ensemble as Ensemble
+from ._ensemble import bootstrap_records as bootstrap_records
+from ._ensemble import check_band_options as check_band_options
+from ._ensemble import fit_ensemble as fit_ensemble
+from ._ensemble import fit_ensembles as fit_ensembles
+from ._estimator import MAX_SEED as MAX_SEED
 from ._estimator import CharacteristicCurves as CharacteristicCurves
 from ._estimator import fit as fit
-from ._estimator import parse_symmetry as parse_symmetry
-from ._linear import DEFAULT_BASIS as DEFAULT_BASIS
+from ._fit_path import JUMP_F_THRESHOLD as JUMP_F_THRESHOLD
+from ._fit_path import dry_friction_test as dry_friction_test
+from ._linear_fit import l0_weight as l0_weight
+from ._methods import DEFAULT_BASIS as DEFAULT_BASIS
+from ._methods import METHODS as METHODS
+from ._methods import parse_basis_option as parse_basis_option
+from ._methods import parse_symmetry as parse_symmetry
+from ._model import FORMAT_VERSION as FORMAT_VERSION
+from ._model import MODEL_SCHEMA as MODEL_SCHEMA
 from ._model import FittedModel as FittedModel
 from ._model import load_model as load_model
+from ._model import validate_model_document as validate_model_document
+from ._objectives import OBJECTIVES as OBJECTIVES
+from ._objectives import EquationError as EquationError
+from ._objectives import OutputError as OutputError
+from ._output_error import closed_form_text as closed_form_text
+from ._output_error import output_error_fit as output_error_fit
+from ._output_error import refine_output_error as refine_output_error
+from ._output_error import summary_lines as summary_lines
+from ._pipeline import raw_fit as raw_fit
+from ._post_sr import DATA_LOSS_TOLERANCE as DATA_LOSS_TOLERANCE
+from ._post_sr import distill_model as distill_model
 from ._presets import PRESETS as PRESETS
 from ._presets import TrainingPreset as TrainingPreset
 from ._presets import get_preset as get_preset
+from ._symbolic_fit import fit_sr as fit_sr
+from ._symbolic_fit import fit_sr_cc as fit_sr_cc
+from ._symbolic_fit import fit_symbolic as fit_symbolic
+from ._symmetry import AUTO_MEMBERS as AUTO_MEMBERS
+from ._symmetry import PARITY_THRESHOLD as PARITY_THRESHOLD
+from ._symmetry import detect_symmetry as detect_symmetry
+from ._symmetry import fit_many_auto as fit_many_auto
+from ._symmetry import parity_tests as parity_tests
+from ._symmetry import resolved_estimator as resolved_estimator

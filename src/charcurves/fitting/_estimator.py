@@ -1,183 +1,76 @@
-"""The estimator users meet: a template + curve representation + priors + fitter, named by method."""
+"""The estimator users meet: a template with a representation per curve, a differentiator, an
+objective and optional post-SR, composed as objects (or named by one of the paper's methods)."""
 
 from __future__ import annotations
 
+import copy
+import inspect
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
-from .._errors import ConfigError, DataError, IdentifiabilityError
-from ..curves._neural import SYMMETRIES, NeuralCurve
-from ..data._trajectory import MIN_SAMPLES, Trajectory
-from ..templates._separable import get_template
-from ._linear import fit_basis, parse_basis_option
+from .._errors import ConfigError, NotFittedError
+from ._methods import METHODS, check_method_options, method_curve, parse_basis_option, parse_symmetry
 from ._model import FittedModel
 from ._presets import get_preset
 
-__all__ = ["CharacteristicCurves", "METHODS", "parse_symmetry", "fit", "dry_friction_test", "JUMP_F_THRESHOLD"]
+__all__ = ["CharacteristicCurves", "fit", "MAX_SEED"]
 
-#: The paper's twelve methods as named presets of shared parts: a curve representation, whether a
-#: symmetry prior applies (odd curves unless told otherwise) and whether the learned curves are
-#: distilled into closed forms afterwards (post-SR).
-METHODS: dict[str, dict[str, Any]] = {
-    "nn-cc": {"representation": "neural", "symmetry": False, "post_sr": False},
-    "nn-cc+post-sr": {"representation": "neural", "symmetry": False, "post_sr": True},
-    "nn-cc+sym": {"representation": "neural", "symmetry": True, "post_sr": False},
-    "nn-cc+sym+post-sr": {"representation": "neural", "symmetry": True, "post_sr": True},
-    "poly-cc": {"representation": "poly", "symmetry": False, "post_sr": False, "allows_symmetry": True},
-    "sindy": {"representation": "sindy", "symmetry": False, "post_sr": False, "free_gain": True},
-    "sindy-cc": {"representation": "sindy", "symmetry": False, "post_sr": False},
-    "sindy-cc+sym": {"representation": "sindy", "symmetry": True, "post_sr": False},
-    "sindy-cc+sym+post-sr": {"representation": "sindy", "symmetry": True, "post_sr": True},
-    "sr": {"representation": "sr", "symmetry": False, "post_sr": False},
-    "sr-cc": {"representation": "sr-cc", "symmetry": False, "post_sr": False},
-    "parametric": {"representation": "basis", "symmetry": False, "post_sr": False},
-}
-
-#: Fitters of the other representations, loaded on first use ("module:function"). Each is called as
-#: ``fitter(traj, template, *, symmetry, options, sr_options, random_state, method)`` and returns a
-#: FittedModel; ``symmetry`` maps curve names to "none"/"odd"/"even".
-_FITTERS = {
-    "poly": "charcurves.fitting._poly:fit_poly",
-    "sindy": "charcurves.fitting._sindy:fit_sindy",
-    "sr": "charcurves.symbolic._methods:fit_sr",
-    "sr-cc": "charcurves.symbolic._methods:fit_sr_cc",
-}
-#: post-SR: ``distill_model(model, *, sr_options, random_state) -> FittedModel`` with closed-form curves
-_DISTILL = "charcurves.symbolic._distill:distill_model"
-
-
-def _load(path: str):
-    import importlib
-
-    module, func = path.split(":")
-    return getattr(importlib.import_module(module), func)
-
-
-#: F statistic above which a jump at zero velocity is significant (chi2(1) quantile, p = 0.001)
-JUMP_F_THRESHOLD = 10.83
-
-
-def dry_friction_test(traj: Trajectory, template) -> tuple[float, float]:
-    """F statistic and height of a jump at zero velocity, by least squares.
-
-    The target g F - x'' is regressed on smooth odd and even powers of both arguments (degree
-    5), with and without sign(x'); the F statistic of the added column measures how much a
-    jump explains beyond smooth curves. Smooth systems give F of order 1 whatever the noise
-    level (their curves lie in the span), dry friction gives tens to thousands.
-    """
-    args = template.arguments_of(traj)
-    velocity = [n for n, var in template.variables.items() if var == "v"][0]
-    cols = [np.ones(traj.n_samples)]
-    for name, z in args.items():
-        u = z / max(float(np.max(np.abs(z))), 1e-300)
-        cols += [u, u**2, u**3, u**5]
-    base = np.column_stack(cols)
-    u = args[velocity]
-    X = np.column_stack([base, np.sign(u)])
-    y = template.gain * np.asarray(traj.F) - np.asarray(traj.a)
-    c0, *_ = np.linalg.lstsq(base, y, rcond=None)
-    c1, *_ = np.linalg.lstsq(X, y, rcond=None)
-    sse0 = float(np.sum((y - base @ c0) ** 2))
-    sse1 = float(np.sum((y - X @ c1) ** 2))
-    dof = traj.n_samples - X.shape[1]
-    if sse1 <= 0 or dof <= 0:
-        return 0.0, 0.0
-    return (sse0 - sse1) / (sse1 / dof), float(c1[-1])
-
-
-def parse_symmetry(sym, curve_names=("f1", "f2")) -> dict[str, str]:
-    """``"f1=odd,f2=odd"`` / ``{"f1": "odd"}`` / ``"odd"`` (all curves) -> ``{"f1": "odd", "f2": "odd"}``."""
-    out = {name: "none" for name in curve_names}
-    if sym is None or sym == "":
-        return out
-    if isinstance(sym, str):
-        if "=" not in sym:
-            items = {name: sym.strip() for name in curve_names}
-        else:
-            items = {}
-            for part in sym.split(","):
-                if not part.strip():
-                    continue
-                if "=" not in part:
-                    raise ConfigError(f"symmetry {part.strip()!r} needs the form CURVE=odd|even|none, e.g. f1=odd,f2=odd")
-                k, v = part.split("=", 1)
-                items[k.strip()] = v.strip()
-    elif isinstance(sym, dict):
-        items = {str(k): str(v) for k, v in sym.items()}
-    else:
-        raise ConfigError(f"symmetry must be a string like 'f1=odd,f2=odd' or a dict, got {type(sym).__name__}")
-    for k, v in items.items():
-        if k not in curve_names:
-            raise ConfigError(f"symmetry given for unknown curve {k!r}; the curves are {', '.join(curve_names)}")
-        if v not in SYMMETRIES:
-            raise ConfigError(f"unknown symmetry {v!r} for {k}; choose one of {', '.join(SYMMETRIES)}")
-        out[k] = v
-    return out
+#: Largest seed: every generator downstream (numpy, torch, Operon) accepts it.
+MAX_SEED = 2**32 - 1
 
 
 class CharacteristicCurves:
     """Identify the characteristic curves of a template from measured records.
 
+    Compose the parts as objects (the recommended way)::
+
+        CharacteristicCurves(template=Separable(f1=Polynomial(degree=3, symmetry="odd"), f2=Neural(symmetry="odd")),
+                             differentiator=SavitzkyGolay(window=31, order=3), objective="auto")
+
+    or name one of the paper's twelve methods, which builds the same objects
+    (``CharacteristicCurves(method="nn-cc+sym")``; see :data:`METHODS`).
+
     Parameters
     ----------
-    family : str
-        The template family ("separable": x'' + f1(x') + f2(x) = g F; "first-order",
-        "position-damping", "two-dof": see docs/families.md).
-    method : str
-        One of :data:`METHODS` ("nn-cc", "nn-cc+sym", "parametric").
-    symmetry : str or dict, optional
-        Parity priors per curve, e.g. "f1=odd,f2=odd". ``+sym`` methods default to odd curves.
-        "auto" tests the parity of unconstrained curves first and imposes only what the data
-        support (see :mod:`charcurves.selection._symmetry`); the decision is in
-        ``model.info["symmetry_auto"]``.
-    free_gain : bool
-        Learn the input gain g (otherwise g = ``gain``).
-    gain : float
-    gain_on : {"force", "acceleration"}
-        With a free gain: which measured side is noisy and so the regression target (see
-        SeparableTemplate).
-    gauge : str, optional
-        The curve(s) anchored at 0 to fix the constants curves can trade (separable: "f2" by
-        default, or "f1"; two-dof: "f2,f4"). None takes the family's default.
-    equation : str, optional
-        A user-written template instead of a family, e.g. "x'' + a1*x' + f1(x) = F" (several
-        equations separated by ';'); see docs/families.md.
-        The curve anchored at 0 (fixes the constant the curves can trade).
+    template : Template, optional
+        A template object (:class:`~charcurves.templates.Separable`, ``PositionDamping``,
+        ``FirstOrder``, ``TwoDOF``, ``Equation``) with a representation per curve; curves left
+        unset take the ``method`` preset's representation (``Neural()`` without a method). None:
+        the template of ``family``/``equation`` with the method's curves.
+    method : str, optional
+        One of :data:`METHODS`; default "nn-cc+sym" when no template is given.
+    differentiator : str or Differentiator, optional
+        How derivatives the template needs are obtained: "auto" (default: the record's own
+        derivative columns when present, else estimated), "given", a name ("spectral", "savgol",
+        "spline", "fd", ...) or an instance (``SavitzkyGolay(window=31, order=3)``).
+    objective : {"auto", "equation-error", "output-error"} or EquationError/OutputError
+        "auto" (default): equation error; then, on a record whose derivatives were estimated (a
+        measured record: the state is noisy), output error -- the curves are refitted to the
+        free-run simulation of the record (see :class:`~charcurves.fitting.OutputError`). The
+        paper's preset keeps equation error.
+    post_sr : bool, optional
+        Distil the fitted curves into closed forms (symbolic regression); default: the method's.
     preset : {"default", "paper"} or TrainingPreset
-        Training settings of neural curves.
-    derivatives : str
-        "auto" (given v, a when present, otherwise estimated), "given", "savgol", "spline",
-        "spectral" or "fd".
-    jump : "auto", "none" or sequence of str
-        Curves that get a learned jump at 0 (dry friction), e.g. ("f1",). "auto" (default) adds
-        one to the velocity curve when the record has sticking phases (x' = 0 over runs of
-        samples), which only dry friction produces, or when a least-squares test finds a jump
-        at zero velocity significant (F-test, p < 0.001; see :func:`dry_friction_test`).
-    basis : str or dict, optional
-        Basis per curve for "parametric", e.g. "f1=z; f2=z, z**3" (z = the curve's argument).
-    options : dict, optional
-        Settings of the non-neural representations (e.g. {"degree": 10} for poly-cc,
-        {"threshold": 1e-4} for the SINDy family).
-    sr_options : dict, optional
-        Symbolic-regression settings for sr, sr-cc and post-SR: engine ("operon" default,
-        "pysr"), generations, populations, population_size, max_size, operators, selection.
-    exclude_sticking : bool
-        Leave out samples where the mass sticks (x' = 0 over a run): friction is set-valued there.
+        Training settings of gradient-trained curves.
     random_state : int
+        Seed of every random choice (0 to 2**32 - 1).
     threads : int, optional
         Torch threads during training (None leaves torch's setting).
-    device : str
-        "cpu" or "cuda".
-    refine : {"none", "output-error", "auto"}
-        After the fit, refine the closed-form curves' coefficients, the gain and the constant by
-        output error (free-run simulation error on the record; see
-        :func:`charcurves.fitting._output_error.refine_output_error`). "auto" does so for free-gain
-        fits with closed-form curves and estimated derivatives (measured records), else nothing.
-    refine_options : dict, optional
-        hold ("linear" default, "zoh", "bandlimited"), substeps (4), segment_length (256),
-        max_nfev, time_budget (s).
+    device : {"cpu", "cuda"}
+    progress : callable, optional
+        ``progress(phase, step, total, loss)`` during training.
+    family, equation, symmetry, free_gain, gain, gauge, gain_on, jump, basis, options, sr_options,
+    hidden, activation, exclude_sticking
+        Shorthands of the method presets: the family or a user-written equation; parity priors
+        ("f1=odd,f2=odd", a dict, or "auto": tested on unconstrained curves); the input gain; the
+        curves anchored at 0; a learned jump at 0 ("auto", "none", or curve names); the
+        Parametric basis ("f1=z; f2=z, z**3"); representation options ({"degree": 10}); symbolic
+        regression settings; the network shape; whether sticking samples are left out.
+    derivatives, refine, refine_options
+        Older names of ``differentiator`` and the objective ("none" = equation error,
+        "output-error", "auto"; ``refine_options`` = :class:`OutputError` settings).
 
     Examples
     --------
@@ -189,62 +82,102 @@ class CharacteristicCurves:
     0.3
     """
 
-    def __init__(self, family: str = "separable", method: str = "nn-cc+sym", *, symmetry=None,
-                 free_gain: bool = False, gain: float = 1.0, gauge: str | None = None, gain_on: str = "force",
-                 preset="default",
-                 derivatives: str = "auto", jump: str | Sequence[str] = "auto", basis=None,
-                 options: dict | None = None, sr_options: dict | None = None, exclude_sticking: bool = True, hidden: Sequence[int] | None = None,
-                 activation: str | None = None, random_state: int = 0, threads: int | None = None,
-                 device: str = "cpu", progress: Callable | None = None, equation: str | None = None,
-                 refine: str = "none", refine_options: dict | None = None):
-        self.family = family
+    def __init__(self, template=None, *, method: str | None = None, differentiator=None, objective="auto",
+                 post_sr: bool | None = None, preset="default", random_state: int = 0, threads: int | None = None,
+                 device: str = "cpu", progress: Callable | None = None, family: str = "separable",
+                 equation: str | None = None, symmetry=None, free_gain: bool = False, gain: float = 1.0,
+                 gauge=None, gain_on: str = "force", jump="auto", basis=None, options: dict | None = None,
+                 sr_options: dict | None = None, hidden: Sequence[int] | None = None, activation: str | None = None,
+                 exclude_sticking: bool = True, derivatives: str | None = None, refine: str | None = None,
+                 refine_options: dict | None = None):
+        self.template = template
         self.method = method
-        self.symmetry = symmetry
-        self.free_gain = free_gain
-        self.gain = gain
-        self.gauge = gauge
-        self.equation = equation
-        self.gain_on = gain_on
+        self.differentiator = differentiator
+        self.objective = objective
+        self.post_sr = post_sr
         self.preset = preset
-        self.derivatives = derivatives
-        self.jump = jump
-        self.basis = basis
-        self.options = options
-        self.sr_options = sr_options
-        self.exclude_sticking = exclude_sticking
-        self.hidden = hidden
-        self.activation = activation
         self.random_state = random_state
         self.threads = threads
         self.device = device
         self.progress = progress
+        self.family = family
+        self.equation = equation
+        self.symmetry = symmetry
+        self.free_gain = free_gain
+        self.gain = gain
+        self.gauge = gauge
+        self.gain_on = gain_on
+        self.jump = jump
+        self.basis = basis
+        self.options = options
+        self.sr_options = sr_options
+        self.hidden = hidden
+        self.activation = activation
+        self.exclude_sticking = exclude_sticking
+        self.derivatives = derivatives
         self.refine = refine
         self.refine_options = refine_options
 
-    # scikit-learn's parameter contract
-    def get_params(self, deep: bool = True) -> dict[str, Any]:
-        import inspect
+    # ------------------------------------------------------------------ scikit-learn contract
+    @classmethod
+    def _param_names(cls) -> list[str]:
+        return [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
 
-        names = [p for p in inspect.signature(type(self).__init__).parameters if p != "self"]
-        return {n: getattr(self, n) for n in names}
+    def get_params(self, deep: bool = True) -> dict[str, Any]:
+        out = {n: getattr(self, n) for n in self._param_names()}
+        if deep and self.template is not None and hasattr(self.template, "get_params"):
+            out.update({f"template__{k}": v for k, v in self.template.get_params(deep=True).items()})
+        return out
 
     def set_params(self, **params) -> CharacteristicCurves:
-        valid = self.get_params()
+        valid = self._param_names()
+        nested = {}
         for k, v in params.items():
-            if k not in valid:
+            head, sep, rest = k.partition("__")
+            if head not in valid:
                 raise ConfigError(f"unknown parameter {k!r}; valid: {', '.join(valid)}")
-            setattr(self, k, v)
+            if sep:
+                nested[rest] = v
+            else:
+                setattr(self, k, v)
+        if nested:
+            if self.template is None or not hasattr(self.template, "set_params"):
+                raise ConfigError("template__... parameters need a template object; give template=Separable(...) first")
+            self.template.set_params(**nested)
         return self
 
-    # ------------------------------------------------------------------ configuration
-    def _check_numeric_options(self) -> None:
-        """Seed, threads and gain must be usable numbers; say which one is not before any work starts."""
+    # ------------------------------------------------------------------ fitting
+    def fit(self, traj) -> CharacteristicCurves:
+        """Fit one record; the result is ``self.model_``."""
+        self.model_ = self.fit_many([traj], seeds=[self.random_state])[0]
+        return self
+
+    def fit_many(self, trajectories: Sequence, seeds: Sequence[int] | None = None) -> list[FittedModel]:
+        """Fit many records (noise realisations, SNR levels...); neural curves train in one batch."""
+        if isinstance(self.symmetry, str) and self.symmetry.strip().lower() == "auto":
+            from ._symmetry import fit_many_auto  # detect parities, then fit with them
+
+            return fit_many_auto(self, trajectories, seeds)
+        from ._pipeline import run_pipeline
+
+        return run_pipeline(self, list(trajectories), seeds)
+
+    # ------------------------------------------------------------------ resolution (used by the pipeline)
+    def method_name(self) -> str:
+        if self.method is not None:
+            return self.method
+        return "nn-cc+sym" if self.template is None else "custom"
+
+    def check(self) -> None:
+        """Numbers and names that must be usable before any work starts."""
         def is_int(value) -> bool:
             return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
-        if not is_int(self.random_state) or self.random_state < 0:
-            raise ConfigError(f"the seed (random_state) must be a non-negative integer, got {self.random_state!r}; "
-                              "give e.g. --seed 0")
+        if self.method is not None and self.method not in METHODS:
+            raise ConfigError(f"unknown method {self.method!r}; choose one of {', '.join(METHODS)}")
+        if not is_int(self.random_state) or not 0 <= self.random_state <= MAX_SEED:
+            raise ConfigError(f"the seed (random_state) must be a non-negative integer up to {MAX_SEED}, got "
+                              f"{self.random_state!r}; give e.g. --seed 0")
         if self.threads is not None and (not is_int(self.threads) or self.threads < 1):
             raise ConfigError(f"threads must be a positive integer, got {self.threads!r}; give e.g. --threads 1")
         try:
@@ -253,12 +186,15 @@ class CharacteristicCurves:
             gain = float("nan")
         if not np.isfinite(gain) or gain == 0:
             raise ConfigError(f"the fixed gain must be a finite non-zero number, got {self.gain!r}; give e.g. gain=1.0")
+        if self.derivatives is not None and self.differentiator is not None and self.derivatives != self.differentiator:
+            raise ConfigError("give the differentiator once: derivatives= is the older name of differentiator=")
+        self._check_basis_cost()
 
     def _check_basis_cost(self) -> None:
         """Refuse basis functions whose exact evaluation by sympy could hang (e.g. ``9**9**9*z``)."""
         import re
 
-        from ._model import expression_cost_problem
+        from ..curves import expression_cost_problem
 
         if isinstance(self.basis, str):
             texts = re.split(r"[;,=]", self.basis)
@@ -272,256 +208,109 @@ class CharacteristicCurves:
                 raise ConfigError(f"basis function {text.strip()[:60]!r} {problem}; write a plain closed form "
                                   "such as 'z**3' or 'tanh(50*z)'")
 
-    def _check_device(self) -> None:
-        """A torch device that exists on this machine (only neural curves use one)."""
-        import torch
+    def differentiator_value(self):
+        value = self.differentiator if self.differentiator is not None else self.derivatives
+        return "auto" if value is None else value
 
-        try:
-            device = torch.device(self.device)
-        except (RuntimeError, TypeError, ValueError):
-            raise ConfigError(f"unknown device {self.device!r}; use --device cpu or cuda") from None
-        if device.type == "cuda" and not torch.cuda.is_available():
-            raise ConfigError(f"device {self.device!r} asked for, but CUDA is not available on this machine; "
-                              "use --device cpu")
-        if device.type not in ("cpu", "cuda"):
-            raise ConfigError(f"device {self.device!r} is not supported; use --device cpu or cuda")
+    def resolve(self):
+        """``(template object with every curve set, its structure, symmetry per curve, method label)``."""
+        from ..templates import as_template
 
-    def _resolve(self):
-        if self.method not in METHODS:
-            raise ConfigError(f"unknown method {self.method!r}; choose one of {', '.join(METHODS)}")
-        spec = METHODS[self.method]
-        self._check_numeric_options()
-        self._check_basis_cost()
-        free_gain = bool(self.free_gain) or bool(spec.get("free_gain", False))
-        from ..templates._general import check_equation_option
+        self.check()
+        method = self.method_name()
+        spec = METHODS.get(method)
+        if self.template is None:
+            free_gain = bool(self.free_gain) or bool(spec.get("free_gain", False))
+            tmpl = as_template(self.family, equation=self.equation, free_gain=free_gain, gain=float(self.gain),
+                               gauge=self.gauge, gain_on=self.gain_on)
+        else:
+            if not hasattr(self.template, "structure"):
+                raise ConfigError(f"template must be a template object such as Separable(...) or Equation('...'), got "
+                                  f"{type(self.template).__name__}; use family=/equation= for names")
+            tmpl = copy.deepcopy(self.template)
+            if spec is not None and spec.get("free_gain"):
+                tmpl.free_gain = True
+        structure = tmpl.structure()
+        names = structure.curve_names
+        if spec is not None and spec["representation"] in ("sr", "sr-cc") and structure.family != "separable":
+            ok = [m for m, s in METHODS.items() if s["representation"] not in ("sr", "sr-cc")]
+            raise ConfigError(f"method {method!r} supports the separable family only; for the {structure.family} "
+                              f"template use one of {', '.join(ok)}")
+        unset = [n for n in names if tmpl.curves.get(n) is None]
+        sym = parse_symmetry(self.symmetry, names) if unset else {n: "none" for n in names}
+        if spec is not None and unset:
+            sym = self._method_symmetry(method, spec, sym, names)
+            options = check_method_options(method, self.options)
+            basis = parse_basis_option(self.basis, names, family=structure.family) if spec["representation"] == "basis" \
+                else None
+            jump = self._jumps(names)
+            if jump not in ("auto", "none") and spec["representation"] != "neural":
+                raise ConfigError(f"--jump applies to neural curves, not to method {method!r}"
+                                  + ("; add tanh(k*z) to the basis for parametric" if method == "parametric" else ""))
+            for n in unset:
+                curve = method_curve(method, n, symmetry=sym[n], jump="auto" if jump == "auto" else
+                                     (() if jump == "none" else jump), options=options, basis=basis,
+                                     hidden=self.hidden, activation=self.activation,
+                                     velocity=n in structure.velocity_curves)
+                setattr(tmpl, n, curve)
+        elif unset:
+            from ..curves import Neural
 
-        check_equation_option(self.equation)
-        template = get_template(self.family, equation=self.equation, free_gain=free_gain, gain=float(self.gain), gauge=self.gauge,
-                                gain_on=self.gain_on)
-        names = template.curve_names
-        sym = parse_symmetry(self.symmetry, names)
-        if spec["symmetry"] and all(v == "none" for v in sym.values()):
-            if self.symmetry not in (None, "", {}) and str(self.symmetry).strip().lower() != "auto":
-                # an explicit "no prior" must not be turned into the +sym default silently
-                plain = self.method.replace("+sym", "")
-                raise ConfigError(
-                    f"method {self.method!r} imposes a parity prior but the symmetry given sets none on every curve; "
-                    f"use {plain!r} for no prior, or give the parities (e.g. f1=odd,f2=odd)"
-                )
-            sym = {n: "odd" for n in names}  # the paper's +sym: odd curves
-        if not spec["symmetry"] and not spec.get("allows_symmetry") and any(v != "none" for v in sym.values()):
-            with_sym = [m for m in METHODS if m.startswith(self.method.split("+")[0]) and METHODS[m]["symmetry"]]
-            raise ConfigError(
-                f"method {self.method!r} has no symmetry prior; use {with_sym[0]} to impose {self.symmetry!r}"
-                if with_sym else f"method {self.method!r} does not take a symmetry prior"
-            )
-        if self.jump == "auto" or self.jump is None or self.jump == "none":
-            return template, spec, sym, (self.jump or "none")
+            for n in unset:
+                setattr(tmpl, n, Neural(symmetry=None if sym[n] == "none" else sym[n]))
+        for n in names:
+            curve = tmpl.curves[n]
+            if not hasattr(curve, "check"):
+                raise ConfigError(f"curve {n} must be a representation such as Neural() or Polynomial(degree=5), got "
+                                  f"{type(curve).__name__}")
+            curve.check()
+        sym = {n: tmpl.curves[n].symmetry_name for n in names}
+        return tmpl, structure, sym, method
+
+    def _jumps(self, names):
+        if self.jump in ("auto", None, "none", ""):
+            return "none" if self.jump in ("none", "") else "auto"
         jumps = [self.jump] if isinstance(self.jump, str) else list(self.jump or ())
         jumps = [j.strip() for item in jumps for j in str(item).split(",") if j.strip()]
         for j in jumps:
             if j not in names:
                 raise ConfigError(f"--jump names unknown curve {j!r}; the curves are {', '.join(names)}")
-        return template, spec, sym, jumps
+        return tuple(jumps)
 
-    def _prepare(self, traj: Trajectory, sym: dict[str, str], template) -> Trajectory:
-        from ..data._differentiate import estimate_derivatives
+    def _method_symmetry(self, method, spec, sym, names):
+        if spec["symmetry"] and all(v == "none" for v in sym.values()):
+            if self.symmetry not in (None, "", {}) and str(self.symmetry).strip().lower() != "auto":
+                # an explicit "no prior" must not be turned into the +sym default silently
+                plain = method.replace("+sym", "")
+                raise ConfigError(
+                    f"method {method!r} imposes a parity prior but the symmetry given sets none on every curve; "
+                    f"use {plain!r} for no prior, or give the parities (e.g. f1=odd,f2=odd)")
+            sym = {n: "odd" for n in names}  # the paper's +sym: odd curves
+        if not spec["symmetry"] and not spec.get("allows_symmetry") and any(v != "none" for v in sym.values()):
+            with_sym = [m for m in METHODS if m.startswith(method.split("+")[0]) and METHODS[m]["symmetry"]]
+            raise ConfigError(f"method {method!r} has no symmetry prior; use {with_sym[0]} to impose {self.symmetry!r}"
+                              if with_sym else f"method {method!r} does not take a symmetry prior")
+        return sym
 
-        if getattr(template, "is_general", False):  # families beyond separable, user-written equations
-            from ..templates._fit import prepare_record
-
-            return prepare_record(traj, template, sym, self.derivatives, f"method {self.method}",
-                                  without_prior=self._without_prior)
-        if not isinstance(traj, Trajectory):
-            raise DataError(f"fit expects a Trajectory, got {type(traj).__name__}; build one with Trajectory.from_csv/from_arrays")
-        traj.require_samples(MIN_SAMPLES, f"method {self.method}")
-        method = self.derivatives
-        if method == "given" and not traj.has_derivatives:
-            raise DataError("--derivatives given needs v and a columns in the data; "
-                            "use --derivatives spline|spectral|savgol to estimate them")
-        if not (method in ("auto", "given") and traj.has_derivatives):
-            traj = estimate_derivatives(traj.replace(v=None, a=None), "auto" if method == "given" else method)
-        try:
-            template.check_excitation(traj)
-        except DataError as exc:  # no excitation: the data cannot determine the curves at all
-            raise IdentifiabilityError(f"no excitation: {exc}") from None
-        if template.free_gain and np.ptp(np.asarray(traj.F)) == 0:
-            raise IdentifiabilityError(
-                "the forcing F is constant over the record, so the gain g cannot be told apart from a constant "
-                "offset (not identifiable); drop --free-gain (free_gain=False) or give a record with varying forcing"
-            )
-        for name, z in template.arguments_of(traj).items():
-            if sym[name] != "none" and (z.min() >= 0 or z.max() <= 0):
-                raise IdentifiabilityError(
-                    f"an {sym[name]} prior on {name} needs its argument {template.arguments[name]} on both "
-                    f"sides of 0, but the record covers only [{z.min():.3g}, {z.max():.3g}], so the prior can be "
-                    f"neither checked nor used; {self._without_prior(name, sym)} or give a record that crosses 0"
-                )
-        return traj
-
-    def _without_prior(self, name: str, sym: dict[str, str]) -> str:
+    def without_prior(self, name: str, sym: dict[str, str]) -> str:
         """How to ask for the same fit without the parity prior on ``name`` (for error messages)."""
         kept = {n: v for n, v in sym.items() if n != name and v != "none"}
         if kept:
             return "drop it (--sym " + ",".join(f"{n}={'none' if n == name else sym[n]}" for n in sym) + ")"
-        if METHODS[self.method]["symmetry"]:  # +sym would impose odd curves again
-            plain = self.method.replace("+sym", "")
-            return f"drop it (use --method {plain})"
+        method = self.method_name()
+        if METHODS.get(method, {}).get("symmetry"):  # +sym would impose odd curves again
+            return f"drop it (use --method {method.replace('+sym', '')})"
         return "drop it (leave out --sym)"
 
-    # ------------------------------------------------------------------ fitting
-    def fit(self, traj: Trajectory) -> CharacteristicCurves:
-        """Fit one record; the result is ``self.model_``."""
-        self.model_ = self.fit_many([traj], seeds=[self.random_state])[0]
-        return self
+    def wants_post_sr(self) -> bool:
+        if self.post_sr is not None:
+            return bool(self.post_sr)
+        return bool(METHODS.get(self.method_name(), {}).get("post_sr", False))
 
-    def fit_many(self, trajectories: Sequence[Trajectory], seeds: Sequence[int] | None = None) -> list[FittedModel]:
-        """Fit many records (noise realisations, SNR levels...); neural curves train in one batch."""
-        if isinstance(self.symmetry, str) and self.symmetry.strip().lower() == "auto":
-            from ..selection._symmetry import fit_many_auto  # detect parities, then fit with them
+    def preset_object(self):
+        return get_preset(self.preset)
 
-            return fit_many_auto(self, trajectories, seeds)
-        self._check_refine()  # before the fit: a bad option must not cost a long run
-        models, prepared = self._fit_many_raw(trajectories, seeds)
-        if METHODS[self.method]["post_sr"]:
-            distill = _load(_DISTILL)
-            if seeds is None:
-                seeds = [self.random_state + i for i in range(len(models))]
-            # a fit stopped by Ctrl-C keeps its networks as they are: distilling them would start
-            # another long search the user just asked to stop. Ctrl-C during post-SR keeps the
-            # finished networks of the models not distilled yet (Operon does not watch for Ctrl-C:
-            # it takes effect when the current curve's search returns, seconds by default)
-            stop = any(m.info.get("interrupted") for m in models)
-            done = []
-            for m, s, tr in zip(models, seeds, prepared):
-                if not stop:
-                    try:
-                        done.append(distill(m, sr_options=dict(self.sr_options or {}), random_state=int(s), traj=tr))
-                        continue
-                    except KeyboardInterrupt:
-                        stop = True
-                m.info["post_sr"] = "skipped: interrupted"
-                done.append(m)
-            models = done
-            for m in models:
-                m.method = self.method
-                if stop:  # the whole call ends interrupted: nothing further (refinement) runs
-                    m.info["interrupted"] = True
-        return self._refine_models(models, trajectories, prepared)
-
-    def _check_refine(self) -> None:
-        from ._output_error import REFINE_MODES, check_refine_options
-
-        if self.refine not in REFINE_MODES:
-            raise ConfigError(f"unknown refine {self.refine!r}; choose one of {', '.join(REFINE_MODES)}")
-        check_refine_options(self.refine_options)
-        spec = METHODS.get(self.method, {})
-        if self.refine == "output-error" and spec.get("representation") == "neural" and not spec.get("post_sr"):
-            raise ConfigError(f"refine='output-error' needs closed-form curves, but {self.method} learns neural "
-                              f"curves; use {self.method}+post-sr (or parametric, poly-cc, sindy), or refine='none'")
-
-    def _refine_models(self, models, trajectories, prepared):
-        """Output-error refinement (``refine``) of each fitted model on its own record."""
-        if self.refine == "none":
-            return models
-        from ._output_error import refine_output_error
-
-        out = []
-        stop = any(m.info.get("interrupted") for m in models)
-        for m, original, tr in zip(models, trajectories, prepared):
-            closed = all(c.expression() is not None for c in m.curves.values())
-            wanted = self.refine == "output-error" or (
-                not getattr(m.template, "is_general", False) and closed
-                and getattr(m.template, "free_gain", False) and not self._given(original))
-            if wanted and not stop:
-                try:
-                    out.append(refine_output_error(m, tr, **dict(self.refine_options or {})))
-                    continue
-                except KeyboardInterrupt:  # keep the finished fit, unrefined, and say so
-                    stop = True
-            if wanted and stop:
-                m.info["refine"] = "skipped: interrupted"
-            out.append(m)
-        if stop:  # the whole call ends interrupted
-            for m in out:
-                m.info["interrupted"] = True
-        return out
-
-    def _fit_many_raw(self, trajectories, seeds):
-        template, spec, sym, jumps = self._resolve()
-        trajs = [self._prepare(tr, sym, template) for tr in trajectories]
-        if seeds is None:
-            seeds = [self.random_state + i for i in range(len(trajs))]
-        if getattr(template, "is_general", False):
-            from ..templates._fit import fit_general
-
-            return fit_general(self, template, spec, sym, jumps, trajs, seeds), trajs
-        if jumps == "none":
-            jumps_of = [() for _ in trajs]
-        elif jumps == "auto":
-            from ..templates._separable import sticking_mask
-
-            velocity = tuple(n for n, var in template.variables.items() if var == "v")
-            auto_ok = spec["representation"] == "neural" and get_preset(self.preset).auto_jump
-            # decided per record (sticking phases, or the dry-friction F test); records with
-            # different curve layouts train in different batches
-            jumps_of = [velocity if auto_ok and (
-                sticking_mask(tr, rel_tol=None if self._given(tr) else 0.01).any()
-                or dry_friction_test(tr, template)[0] > JUMP_F_THRESHOLD) else () for tr in trajs]
-        else:
-            jumps_of = [tuple(jumps) for _ in trajs]
-        jumps = sorted({j for js in jumps_of for j in js})
-        if spec["representation"] in _FITTERS:
-            if jumps:
-                raise ConfigError(f"--jump applies to neural curves, not to method {self.method!r}")
-            fitter = _load(_FITTERS[spec["representation"]])
-            out = []
-            for tr, s in zip(trajs, seeds):
-                options = dict(self.options or {})
-                if spec["representation"] in ("poly", "sindy"):
-                    options.setdefault("exclude_sticking", self.exclude_sticking)
-                    options.setdefault("stick_tol", None if self._given(tr) else 0.01)
-                out.append(fitter(tr, template, symmetry=sym, options=options,
-                                  sr_options=dict(self.sr_options or {}), random_state=int(s), method=self.method))
-            return out, trajs
-        if spec["representation"] == "basis":
-            basis = parse_basis_option(self.basis, template.curve_names)
-            if jumps:
-                raise ConfigError("--jump applies to neural curves; add tanh(k*z) to the basis for parametric")
-            return [fit_basis(tr, template, basis, method=self.method, exclude_sticking=self.exclude_sticking,
-                              stick_tol=None if self._given(tr) else 0.01) for tr in trajs], trajs
-        from ._neural_fit import fit_neural
-
-        self._check_device()
-        preset = get_preset(self.preset)
-        given = all(self._given(tr) for tr in trajectories)
-        groups: dict[tuple, list[int]] = {}
-        for i, tr in enumerate(trajs):
-            groups.setdefault((tr.n_samples, jumps_of[i]), []).append(i)
-        out: list[FittedModel | None] = [None] * len(trajs)
-        for (_, layout), idx in groups.items():
-            curves = {
-                name: NeuralCurve(
-                    hidden=tuple(self.hidden) if self.hidden else preset.hidden,
-                    activation=self.activation or preset.activation,
-                    symmetry=sym[name],
-                    symmetry_mode=preset.symmetry_mode,
-                    linear_term=preset.linear_term,
-                    jump=name in layout,
-                )
-                for name in template.curve_names
-            }
-            models = fit_neural([trajs[i] for i in idx], template, curves, preset, [int(seeds[i]) for i in idx],
-                                method=self.method, exclude_sticking=self.exclude_sticking,
-                                stick_tol=None if given else 0.01, device=self.device, threads=self.threads,
-                                progress=self.progress)
-            for i, m in zip(idx, models):
-                out[i] = m
-        return out, trajs  # type: ignore[return-value]
-
-    def _given(self, traj: Trajectory) -> bool:
-        return self.derivatives in ("auto", "given") and traj.has_derivatives
-
+    # ------------------------------------------------------------------ fitted attributes
     @property
     def curves_(self):
         return self._fitted().curves
@@ -535,15 +324,17 @@ class CharacteristicCurves:
         return self._fitted().loss
 
     def _fitted(self) -> FittedModel:
-        from .._errors import NotFittedError
-
         if not hasattr(self, "model_"):
             raise NotFittedError("this CharacteristicCurves is not fitted yet; call fit(trajectory) first")
         return self.model_
 
+    def __repr__(self) -> str:
+        sig = inspect.signature(type(self).__init__)
+        shown = [f"{n}={getattr(self, n)!r}" for n in self._param_names()
+                 if getattr(self, n) is not sig.parameters[n].default and getattr(self, n) != sig.parameters[n].default]
+        return f"CharacteristicCurves({', '.join(shown)})"
 
-def fit(traj: Trajectory, method: str = "nn-cc+sym", **kwargs) -> FittedModel:
+
+def fit(traj, method: str = "nn-cc+sym", **kwargs) -> FittedModel:
     """Shortcut: ``CharacteristicCurves(method=method, **kwargs).fit(traj).model_``."""
     return CharacteristicCurves(method=method, **kwargs).fit(traj).model_
-
-

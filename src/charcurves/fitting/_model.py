@@ -10,9 +10,9 @@ from typing import Any
 import numpy as np
 
 from .._errors import ConfigError, ModelFileError
-from ..curves._fitted import FittedCurve, curve_from_spec
+from ..curves import FittedCurve, curve_from_spec, expression_cost_problem
 from ..io._csv import atomic_write_bytes
-from ..templates._separable import SeparableTemplate, get_template
+from ..templates import EquationTemplate, display, get_template
 
 __all__ = ["FittedModel", "FORMAT_VERSION", "MODEL_SCHEMA", "load_model", "validate_model_document"]
 
@@ -26,7 +26,7 @@ class FittedModel:
 
     Attributes
     ----------
-    template : SeparableTemplate
+    template : EquationTemplate
     method : str
     curves : dict[str, FittedCurve]
     gain : float            input gain g (1 unless learned)
@@ -35,7 +35,7 @@ class FittedModel:
     info : dict             training details (preset, seed, iterations, times, masks...)
     """
 
-    def __init__(self, template: SeparableTemplate, method: str, curves: dict[str, FittedCurve],
+    def __init__(self, template: EquationTemplate, method: str, curves: dict[str, FittedCurve],
                  gain: float, offset: float, loss: float, info: dict | None = None):
         self.template = template
         self.method = method
@@ -52,24 +52,40 @@ class FittedModel:
         except KeyError:
             raise ConfigError(f"no curve {name!r}; this model has {', '.join(self.curves)}") from None
 
+    @property
+    def scalars(self) -> dict[str, float]:
+        """Learned scalars ``a1, a2, ...`` and the free constants ``b2, b3, ...`` of further equations."""
+        return {k: float(v) for k, v in dict(self.info.get("scalars", {})).items()}
+
     def acceleration(self, t, x, v, F) -> np.ndarray:
         """x'' implied by the model: g F - f1(x') - f2(x) - b."""
-        if getattr(self.template, "is_general", False):
+        if self.template.is_general:
             raise ConfigError(f"acceleration() is the separable family's; for the {self.template.family} template "
                               "use force_residual(record) or charcurves.simulate.simulate_model")
         return self.gain * np.asarray(F) - self.curves["f1"](v) - self.curves["f2"](x) - self.offset
 
     def force_residual(self, traj) -> np.ndarray:
-        """x'' + f1 + f2 + b - g F on a trajectory with derivatives."""
-        if getattr(self.template, "is_general", False):  # every equation of a general template: (N,) or (N, E)
-            from ..templates._fit import template_residual
-
-            return template_residual(self, traj)
-        return np.asarray(traj.a) - self.acceleration(traj.t, traj.x, traj.v, traj.F)
+        """The equation's residual (separable: x'' + f1 + f2 + b - g F) on a record with derivatives:
+        shape (N,) for one equation, (N, E) for several."""
+        if not self.template.is_general:
+            return np.asarray(traj.a) - self.acceleration(traj.t, traj.x, traj.v, traj.F)
+        D = self.template.design(traj)
+        n, E = D["n"], D["E"]
+        r = D["y"] - self.gain * D["F"]
+        for name, c in self.curves.items():
+            r = r + D["mult"][name] * np.tile(np.asarray(c(D["args"][name]), dtype=float), E)
+        sc = self.scalars
+        for s, sig in D["scalars"].items():
+            r = r + sig * sc.get(s, 0.0)
+        r = r.reshape(E, n)
+        r[0] += self.offset
+        for e in range(1, E):
+            r[e] += sc.get(f"b{e + 1}", 0.0)
+        return r[0] if E == 1 else r.T
 
     def rhs(self, forcing):
         """Right-hand side ``f(t, [x, v])`` for scipy's solve_ivp with forcing ``F(t)``."""
-        if getattr(self.template, "is_general", False):
+        if self.template.is_general:
             raise ConfigError(f"rhs() is the separable family's; simulate a {self.template.family} model with "
                               "charcurves.simulate.simulate_model")
         f1, f2, g, b = self.curves["f1"], self.curves["f2"], self.gain, self.offset
@@ -95,10 +111,8 @@ class FittedModel:
                 f"curves {missing} are not symbolic; distil them first (a method with +post-sr) "
                 "or use a basis method"
             )
-        if getattr(self.template, "is_general", False):  # one Eq, or a list of Eq for several equations
-            from ..templates._fit import template_to_sympy
-
-            return template_to_sympy(self)
+        if self.template.is_general:  # one Eq, or a list of Eq for several equations
+            return self._general_sympy()
         t = sp.Symbol("t")
         x = sp.Function("x")(t)
         F = sp.Function("F")(t)
@@ -109,6 +123,28 @@ class FittedModel:
         if self.offset:
             lhs += sp.Float(self.offset)
         return sp.Eq(lhs, sp.Float(self.gain) * F if self.gain != 1 else F)
+
+    def _general_sympy(self):
+        import sympy as sp
+
+        template = self.template
+        z = sp.Symbol("z")
+        sc = self.scalars
+        out = []
+        for e, eq in enumerate(template.equations):
+            lhs = eq.known
+            for name, m in eq.curves.items():
+                lhs = lhs + m * self.curves[name].expression().subs(z, template.argument_exprs[name])
+            for s, sig in eq.scalars.items():
+                lhs = lhs + sp.Float(sc.get(s, 0.0)) * sig
+            off = self.offset if e == 0 else sc.get(f"b{e + 1}", 0.0)
+            if off:
+                lhs = lhs + sp.Float(off)
+            rhs = eq.input if self.gain == 1 else sp.Float(self.gain) * eq.input
+            eq_ = sp.Eq(lhs, rhs)
+            # data symbols as written (x', x1'') rather than the parser's internal names
+            out.append(eq_.subs({s: sp.Symbol(display(s.name), real=True) for s in eq_.free_symbols}))
+        return out[0] if len(out) == 1 else out
 
     def to_latex(self) -> str:
         import sympy as sp
@@ -140,11 +176,11 @@ class FittedModel:
             "gain": self.gain,
             "gain_free": self.template.free_gain,
             "offset": self.offset,
-            "gauge": (f"{self.template.gauge}(0) = 0" if not getattr(self.template, "is_general", False)
+            "gauge": (f"{(self.template.anchors or ('f2',))[0]}(0) = 0" if not self.template.is_general
                       else ", ".join(self.info.get("gauge_conditions", [])) or "none (no constant to trade)"),
             "loss": self.loss,
             "curves": curves,
-            **({"scalars": dict(self.info.get("scalars", {}))} if getattr(self.template, "is_general", False) else {}),
+            **({"scalars": dict(self.info.get("scalars", {}))} if self.template.is_general else {}),
             # symmetry="auto": the parities imposed and the tests behind them (charcurves.selection)
             **({"symmetry": _jsonable(self.info["symmetry_auto"])} if "symmetry_auto" in self.info else {}),
             # uncertainty bands from an ensemble, when computed (charcurves.selection.attach_bands)
@@ -183,7 +219,7 @@ class FittedModel:
             "method": self.method,
             "gain": self.gain,
             "offset": self.offset,
-            "loss": self.loss,
+            "loss": self.loss if np.isfinite(self.loss) else None,  # standard JSON: no NaN/Infinity
             "curves": curve_specs,
             "info": _jsonable(self.info),
         }
@@ -271,7 +307,8 @@ def load_model(directory: str | os.PathLike) -> FittedModel:
         for spec in doc["curves"]:
             c = curve_from_spec(spec, arrays)
             curves[c.name] = c
-        return FittedModel(template, doc["method"], curves, doc["gain"], doc["offset"], doc["loss"],
+        loss = doc["loss"] if doc["loss"] is not None else float("nan")
+        return FittedModel(template, doc["method"], curves, doc["gain"], doc["offset"], loss,
                            doc.get("info", {}))
     except ModelFileError as exc:
         message = str(exc)
@@ -297,6 +334,8 @@ _CURVE_KIND_SCHEMA = {
                "in_scale": _NUMBER, "out_scale": _NUMBER},
     "basis": {"basis": [str]},
     "symbolic": {"expression": str},
+    "linear": {"representation": str, "parameters": dict, "center": _NUMBER, "half_width": _NUMBER,
+               "constant": _NUMBER},
 }
 MODEL_SCHEMA = {
     "format": str,
@@ -305,7 +344,7 @@ MODEL_SCHEMA = {
     "method": str,
     "gain": _NUMBER,
     "offset": _NUMBER,
-    "loss": _NUMBER,
+    "loss": "number or null",
     "curves": [_CURVE_SCHEMA],
     "info": dict,
     "arrays_sha256": str,
@@ -338,6 +377,9 @@ def _check(value, schema, where: str, jpath: str) -> None:
     elif schema == _NUMBER:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             fail("a number")
+    elif schema == "number or null":
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            fail("a number")
     elif schema is int:
         if isinstance(value, bool) or not isinstance(value, int):
             fail("an integer")
@@ -369,6 +411,12 @@ def validate_model_document(doc, jpath: str = _MODEL_JSON) -> None:
         raise ModelFileError(f"{jpath!r} has model format version {version}, which this charcurves no longer "
                              f"reads (it reads {FORMAT_VERSION}); re-fit the model")
     _check(doc, MODEL_SCHEMA, "model", jpath)
+    for key, nonzero in (("gain", True), ("offset", False)):
+        value = float(doc[key])
+        if not np.isfinite(value) or (nonzero and value == 0.0):
+            need = "a finite non-zero number" if nonzero else "a finite number"
+            raise ModelFileError(f"{jpath!r}: model.{key} is {doc[key]!r}, but must be {need}; the model file is "
+                                 "corrupted or was edited by hand, re-fit the model")
     sha = doc["arrays_sha256"]
     if len(sha) != 64 or any(ch not in "0123456789abcdef" for ch in sha):
         raise ModelFileError(f"{jpath!r}: model.arrays_sha256 is not a sha256 hex digest; the model file is "
@@ -392,60 +440,6 @@ def validate_model_document(doc, jpath: str = _MODEL_JSON) -> None:
     if len(set(names)) != len(names) or not names:
         raise ModelFileError(f"{jpath!r}: curve names {names} are empty or repeated; the model file is corrupted, "
                              "re-save or re-fit the model")
-
-
-#: bounds that keep sympy's exact arithmetic cheap on expressions read from files
-_MAX_EXPONENT_LITERAL = 100
-_MAX_EXPONENT_LITERALS = 2
-_MAX_POWER_GROWTH = 1e5  # product of the exponents of powers nested in one another's bases
-_MAX_LITERAL_DIGITS = 30
-_MAX_EXPRESSION_CHARS = 2000
-
-
-def expression_cost_problem(text: str) -> str | None:
-    """Why parsing ``text`` could hang (e.g. ``9**9**9``, which sympy evaluates exactly), or None.
-
-    The text is only parsed by Python's ``ast`` (nothing is evaluated): powers may not nest
-    in their exponent, which may hold at most two numbers of magnitude <= 100; powers nested in
-    bases may multiply their exponents up to 1e5; numbers have at most 30 digits. Fitted curves
-    stay far inside these bounds.
-    """
-    import ast
-
-    if len(text) > _MAX_EXPRESSION_CHARS:
-        return f"is longer than {_MAX_EXPRESSION_CHARS} characters"
-    try:
-        tree = ast.parse(text.replace("^", "**"), mode="eval")
-    except (SyntaxError, ValueError, RecursionError, MemoryError):
-        return None  # not Python syntax: the token check of the curve parser refuses it with its own message
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Constant) and isinstance(node.value, (int, float, complex)):
-            digits = sum(ch.isdigit() for ch in repr(node.value))
-            if digits > _MAX_LITERAL_DIGITS:
-                return f"holds a number with more than {_MAX_LITERAL_DIGITS} digits"
-        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
-            inner = list(ast.walk(node.right))
-            if any(isinstance(n, ast.BinOp) and isinstance(n.op, ast.Pow) for n in inner):
-                return "nests a power in an exponent (exact evaluation could take forever)"
-            numbers = [n.value for n in inner if isinstance(n, ast.Constant) and isinstance(n.value, (int, float))]
-            if len(numbers) > _MAX_EXPONENT_LITERALS or any(abs(v) > _MAX_EXPONENT_LITERAL for v in numbers):
-                return "raises to an exponent too large to evaluate exactly"
-    if _power_growth(tree.body) > _MAX_POWER_GROWTH:
-        return "nests powers whose exponents multiply beyond what can be evaluated exactly"
-    return None
-
-
-def _power_growth(node) -> float:
-    """Largest product of exponent sizes along a chain of powers nested in bases, e.g. ((a**3)**4) -> 12."""
-    import ast
-
-    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
-        size = 1.0
-        for n in ast.walk(node.right):
-            if isinstance(n, ast.Constant) and isinstance(n.value, (int, float)):
-                size *= max(1.0, abs(float(n.value)))
-        return size * _power_growth(node.left)
-    return max([_power_growth(child) for child in ast.iter_child_nodes(node)], default=1.0)
 
 
 def _split_timings(obj, path: str = ""):
@@ -476,12 +470,12 @@ def _jsonable(obj):
         return {str(k): _jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
         return [_jsonable(v) for v in obj]
-    if isinstance(obj, (np.floating,)):
-        return float(obj)
-    if isinstance(obj, (np.integer,)):
+    if isinstance(obj, np.integer):
         return int(obj)
     if isinstance(obj, np.ndarray):
-        return obj.tolist()
+        return _jsonable(obj.tolist())
+    if isinstance(obj, np.floating):
+        obj = float(obj)
     if isinstance(obj, float) and not np.isfinite(obj):
         return str(obj)
     return obj

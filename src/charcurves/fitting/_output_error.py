@@ -1,495 +1,328 @@
-"""Output-error refinement of closed-form models: fit the coefficients to the free-run simulation.
+"""Output-error training of any fitted model: every representation, every template with a forward model.
 
-Every method of charcurves fits *equation error*: the residual of ``x'' + f1(x') + f2(x) + b = g F``
-with estimated derivatives. When the derivatives are biased (few samples per period, smoothing)
-or the structure is only approximately right, equation error and simulation disagree, and the
-free-run simulation is what a user of the model sees. This module takes a fitted model whose
-curves are closed forms (post-SR, parametric, poly-cc, SINDy) and re-estimates all its numeric
-coefficients, the gain (when free) and the constant ``b`` by minimising the simulation error
-on the estimation record (``scipy.optimize.least_squares``).
-
-Robustness: multiple shooting without continuity constraints ("segmented output error"). The
-record is cut into segments of ``segment_length`` samples, each with its own free initial state,
-so a poor starting model (or a chaotic system) cannot make the long free run drift away and
-trap the optimiser in a local minimum; for a stable system the transient of a wrong initial
-state dies out within a few time constants, so segments much longer than that give the same
-coefficients as one free run of the whole record. All segments (and the finite-difference
-perturbations of the Jacobian) are simulated in one vectorised RK4 run
-(:func:`charcurves.simulate.rk4_sampled`).
+The equation-error fit is the start; the curves' parameters (neural weights, polynomial and sparse
+coefficients, the constants of closed forms), the unknown scalars, the equations' free constants,
+the gain (when free) and the initial state of every shooting segment are refitted to the measured
+positions by batched Levenberg-Marquardt (:mod:`._shooting` gives the exact Jacobian). Each
+ensemble member of a neural fit trains as its own row, and the members whose loss is within the
+preset's tolerance of the best are averaged, as in equation error. A learned jump (dry friction)
+trains with its width held at a floor that fixed-step RK4 can integrate, and gets its sharp
+width back afterwards. When the free run cannot be simulated or does not improve, the
+equation-error model is kept and ``info["output_error"]["status"]`` says why.
 """
 
 from __future__ import annotations
 
+import math
 import time
-import warnings
 
 import numpy as np
 
 from .._errors import ConfigError, DataError
+from ._objectives import OutputError
 
-__all__ = ["refine_output_error", "free_run_error", "estimate_initial_state", "check_refine_options", "REFINE_MODES",
-           "DEFAULT_OPTIONS"]
-
-#: Values of ``CharacteristicCurves(refine=...)`` / ``--refine``.
-REFINE_MODES = ("none", "output-error", "auto")
-
-#: Defaults of ``refine_options`` (see :func:`refine_output_error`).
-DEFAULT_OPTIONS = {
-    "hold": "linear",
-    "substeps": 4,
-    "segment_length": 256,
-    "max_nfev": 60,
-    "time_budget": 600.0,
-}
-
-def check_refine_options(options) -> None:
-    """Raise :class:`ConfigError` for unknown keys or unusable values of ``refine_options``."""
-    from ..simulate._sampled import _check_hold
-
-    if options is None:
-        return
-    if not isinstance(options, dict):
-        raise ConfigError(f"refine_options must be a dict such as {{'hold': 'linear'}}, got {type(options).__name__}")
-    unknown = sorted(set(options) - set(DEFAULT_OPTIONS))
-    if unknown:
-        raise ConfigError(f"unknown refine option {unknown[0]!r}; valid: {', '.join(DEFAULT_OPTIONS)}")
-    merged = {**DEFAULT_OPTIONS, **options}
-    _check_hold(merged["hold"], merged["substeps"])
-    seg = merged["segment_length"]
-    if not isinstance(seg, (int, np.integer)) or isinstance(seg, bool) or seg < 16:
-        raise ConfigError(f"segment_length must be an integer >= 16 samples, got {seg!r}")
-    nfev = merged["max_nfev"]
-    if not isinstance(nfev, (int, np.integer)) or isinstance(nfev, bool) or nfev < 1:
-        raise ConfigError(f"max_nfev must be a positive integer, got {nfev!r}")
-    budget = merged["time_budget"]
-    if not isinstance(budget, (int, float)) or isinstance(budget, bool) or not budget > 0:
-        raise ConfigError(f"time_budget must be a positive number of seconds, got {budget!r}")
+__all__ = ["output_error_fit", "refine_output_error", "closed_form_text", "summary_lines", "choose_substeps",
+           "choose_segment_length"]
 
 
-#: Forward-difference step in the scaled parameters (all of order 1).
-_FD_STEP = 1e-7
+def choose_substeps(x: np.ndarray) -> int:
+    """RK4 steps per sample: enough for 20 steps per period of the highest frequency below which
+    99 % of the signal's spectral power lies (RK4 local error about (2 pi / 20)^5 / 120 = 3e-5 of the
+    state per step): 1 at the paper's 130 samples per period, 4 at 5."""
+    x = np.asarray(x, dtype=float) - float(np.mean(x))
+    power = np.abs(np.fft.rfft(x)) ** 2
+    if power.size < 3 or power.sum() == 0:
+        return 1
+    cum = np.cumsum(power) / power.sum()
+    k = int(np.searchsorted(cum, 0.99))
+    samples_per_period = len(x) / max(k, 1)
+    return int(min(8, max(1, math.ceil(20.0 / samples_per_period))))
 
 
-class _BudgetSpent(Exception):
-    pass
+def choose_segment_length(n: int) -> int:
+    """Samples per shooting segment: 64 (long enough to see the dynamics, short enough that a
+    start from the equation-error fit stays close; docs/measured-records.md), fewer on short records."""
+    return int(max(16, min(64, (n - 1) // 4 + 1)))
 
 
-class _Parametrised:
-    """The model with its numeric coefficients turned into a parameter vector.
-
-    Layout of ``theta``: the free coefficients of f1, then of f2, then g (when free), then b.
-    Additive constants of the curves stay fixed: they are collinear with b (gauge).
-    """
-
-    def __init__(self, model):
-        import sympy as sp
-
-        self.model = model
-        self.z = sp.Symbol("z")
-        self.curve_names = ("f1", "f2")
-        self.blocks: dict[str, tuple[int, int]] = {}
-        self.labels: list[str] = []
-        values: list[float] = []
-        self.funcs = {}
-        self.rebuild = {}
-        for name in self.curve_names:
-            curve = model.curves[name]
-            start = len(values)
-            expr, vals, builder, terms = self._curve_parameters(name, curve)
-            syms = [sp.Symbol(f"p{start + i}") for i in range(len(vals))]
-            self.funcs[name] = sp.lambdify((self.z, *syms), expr(syms), modules="numpy")
-            values += vals
-            self.labels += [f"{name}:{term}" for term in terms]
-            self.blocks[name] = (start, len(values))
-            self.rebuild[name] = builder
-        self.free_gain = bool(model.template.free_gain)
-        if self.free_gain:
-            self.labels.append("g")
-            values.append(float(model.gain))
-        self.labels.append("b")
-        values.append(float(model.offset))
-        self.theta0 = np.asarray(values, dtype=float)
-
-    # -------------------------------------------------------------- per curve
-    def _curve_parameters(self, name, curve):
-        """(expression builder from parameter symbols, start values, curve builder from values, labels).
-
-        A symbolic curve gets one coefficient per additive term (also where it is an implicit 1 or an
-        integer, as in ``z**3 - z``) plus every Float inside the terms (``tanh(50.0*z)``); exponents
-        and the additive constant stay fixed.
-        """
-        import sympy as sp
-
-        from ..curves._fitted import BasisFittedCurve, SymbolicFittedCurve
-
-        z = self.z
-        if isinstance(curve, BasisFittedCurve):
-            exprs = list(curve._exprs)
-            shift = sp.Float(curve.shift)
-
-            def expr(syms):
-                return sum((s * e for s, e in zip(syms, exprs)), sp.Integer(0)) + shift
-
-            def build(vals):
-                return BasisFittedCurve(curve.name, curve.argument, curve.domain, curve.basis, vals, curve.shift)
-
-            return expr, [float(c) for c in curve.coefficients], build, list(curve.basis)
-        full = curve.expression()
-        if full is None:
-            raise ConfigError(
-                f"output-error refinement needs closed-form curves, but {name} is a {curve.kind} curve; "
-                "use a method with +post-sr, parametric, poly-cc or sindy, or refine='none'"
-            )
-        if isinstance(curve, SymbolicFittedCurve):
-            raw, shift = curve._expr, float(curve.shift)
-        else:
-            raw, shift = full, 0.0
-        const, rest = raw.as_coeff_Add()  # the additive constant stays fixed (collinear with b)
-        floats: list[float] = []
-        labels: list[str] = []
-        terms = []
-        for term in sp.Add.make_args(rest) if rest != 0 else ():
-            coeff, body = term.as_coeff_Mul()
-            holder = sp.Symbol(f"__c{len(floats)}")
-            floats.append(float(coeff))
-            labels.append(str(body))
-            inner = len(floats)
-            body = _replace_floats(body, floats)
-            labels += [f"{labels[-1]}#{k}" for k in range(len(floats) - inner)]
-            terms.append(holder * body)
-        template = sp.Add(*terms)
-
-        def expr(syms):
-            return template.xreplace(dict(zip(_placeholders(len(floats)), syms))) + const + sp.Float(shift)
-
-        def build(vals):
-            new = template.xreplace({p: sp.Float(float(v)) for p, v in zip(_placeholders(len(floats)), vals)})
-            return SymbolicFittedCurve(curve.name, curve.argument, curve.domain, new + const, shift,
-                                       dict(getattr(curve, "meta", {}) or {}))
-
-        return expr, floats, build, labels
-
-    # -------------------------------------------------------------- evaluation
-    def accel(self, theta):
-        """``accel(x, v, u)`` for parameters ``theta`` of shape (P,) or (P, K) (K candidates)."""
-        a1, b1 = self.blocks["f1"]
-        a2, b2 = self.blocks["f2"]
-        f1, f2 = self.funcs["f1"], self.funcs["f2"]
-        p1 = tuple(theta[a1:b1])
-        p2 = tuple(theta[a2:b2])
-        g = theta[-2] if self.free_gain else float(self.model.gain)
-        b = theta[-1]
-
-        def accel(x, v, u):
-            return g * u - f1(v, *p1) - f2(x, *p2) - b
-
-        return accel
-
-    def build(self, theta):
-        from ._model import FittedModel
-
-        curves = {}
-        for name in self.curve_names:
-            a, b = self.blocks[name]
-            curves[name] = self.rebuild[name](np.asarray(theta[a:b], dtype=float))
-        g = float(theta[-2]) if self.free_gain else float(self.model.gain)
-        m = self.model
-        return FittedModel(m.template, m.method, curves, g, float(theta[-1]), m.loss, dict(m.info))
+def _segments(n: int, L: int, max_segments: int):
+    """Segment length, starts (consecutive segments share their end sample, the record is cut into
+    ``round((n - 1) / (L - 1))`` equal segments) and which consecutive pairs abut."""
+    if n < 16:
+        raise ConfigError(f"the record has {n} samples, too few for output error; give at least 16")
+    count = max(1, int(round((n - 1) / (L - 1))))
+    L = (n - 1) // count + 1
+    starts = np.arange(count) * (L - 1)
+    if count > max_segments:
+        pick = np.unique(np.round(np.linspace(0, count - 1, max_segments)).astype(int))
+        starts = starts[pick]
+    contiguous = np.diff(starts) == L - 1
+    return L, starts, contiguous
 
 
-def _placeholders(n):
-    import sympy as sp
+def _stage_arrays(signal, starts, L, substeps, hold, dtype):
+    import torch
 
-    return [sp.Symbol(f"__c{i}") for i in range(n)]
+    from ..data import stage_inputs
 
-
-def _replace_floats(expr, out: list):
-    """``expr`` with every Float occurrence (not exponents) replaced by a placeholder ``__c<i>``."""
-    import sympy as sp
-
-    if isinstance(expr, sp.Float):
-        sym = sp.Symbol(f"__c{len(out)}")
-        out.append(float(expr))
-        return sym
-    if not expr.args:
-        return expr
-    if isinstance(expr, sp.Pow):
-        base, exp = expr.args
-        return sp.Pow(_replace_floats(base, out), exp)  # exponents are structure, not coefficients
-    return expr.func(*[_replace_floats(a, out) for a in expr.args])
+    ua, um, ub = stage_inputs(np.asarray(signal, dtype=float), substeps, hold)
+    idx = starts[None, :] * substeps + np.arange((L - 1) * substeps)[:, None]
+    return tuple(torch.as_tensor(a[idx], dtype=dtype) for a in (ua, um, ub))
 
 
-# ------------------------------------------------------------------------------ helpers
-def _inputs_for(traj, hold, substeps):
-    from ..simulate._sampled import stage_inputs
+def _positions(record, positions) -> dict:
+    """The measured position columns (x, or x1, x2, ...) of a record."""
+    from ..data import Trajectory
 
-    traj.require_uniform("output-error refinement (a sampled-input free run)")
-    return stage_inputs(np.asarray(traj.F), substeps, hold)
-
-
-def _velocity(traj) -> np.ndarray:
-    if traj.v is not None:
-        return np.asarray(traj.v)
-    return np.gradient(np.asarray(traj.x), np.asarray(traj.t))
+    if isinstance(record, Trajectory):
+        return {"x": np.asarray(record.x, dtype=float)}
+    return {p: np.asarray(record.states[p], dtype=float) for p in positions}
 
 
-def free_run_error(model, traj, *, hold: str = "linear", substeps: int = 4, x0: float | None = None,
-                   v0: float | None = None, time_budget: float = 120.0):
-    """Free-run simulation of ``model`` driven by the record's input, and its RMSE against x.
+def output_error_fit(model, prepared, measured, settings: OutputError, *, preset, progress=None, strict: bool = False):
+    """Output error of one fitted model on its record (module docstring).
 
     Parameters
     ----------
     model : FittedModel
-    traj : Trajectory
-        Uniformly sampled record (x and F).
-    hold, substeps : see :func:`charcurves.simulate.simulate_sampled`.
-    x0, v0 : float, optional
-        Initial state; by default estimated from the first samples (:func:`estimate_initial_state`).
-
-    Returns
-    -------
-    rmse : float
-        Root-mean-square of simulated minus measured x over all samples (inf when the run fails).
-    result : SimulationResult
-    """
-    from ..simulate._sampled import simulate_sampled
-
-    traj.require_uniform("a free-run simulation of a sampled record")
-    if x0 is None or v0 is None:
-        ex0, ev0 = estimate_initial_state(model, traj, hold=hold, substeps=substeps)
-        x0 = ex0 if x0 is None else x0
-        v0 = ev0 if v0 is None else v0
-    res = simulate_sampled(model, traj, float(x0), float(v0), hold=hold, substeps=substeps, time_budget=time_budget)
-    if not res.ok:
-        return float("inf"), res
-    return float(np.sqrt(np.mean((res.x - np.asarray(traj.x)) ** 2))), res
-
-
-def estimate_initial_state(model, traj, *, hold: str = "linear", substeps: int = 4, n_fit: int = 128):
-    """The initial state (x0, x0') that best explains the first ``n_fit`` samples by a free run.
-
-    A record's first velocity is not measured, and a derivative estimate at the very edge of a
-    record is poor (spectral methods assume periodic continuation); two parameters fitted by
-    output error on a short span are robust and cost a few milliseconds.
-    """
-    from scipy.optimize import least_squares
-
-    from ..simulate._sampled import rk4_sampled, stage_inputs
-
-    n = int(min(max(n_fit, 8), traj.n_samples))
-    x = np.asarray(traj.x[:n], dtype=float)
-    ua, um, ub = stage_inputs(np.asarray(traj.F[:n]), substeps, hold)
-    if _closed(model):
-        par = _Parametrised(model)
-        accel = par.accel(par.theta0)
-    else:
-        accel = _model_accel(model)
-    dt = float(traj.dt)
-    v_guess = float(np.gradient(x[:5], dt)[0]) if n >= 5 else 0.0
-    sx = max(float(np.std(x)), 1e-12)
-    sv = max(float(np.std(np.gradient(x, dt))), 1e-12)
-
-    def resid(q):
-        xs, _, _ = rk4_sampled(accel, ua[:, None], um[:, None], ub[:, None], np.array([q[0] * sx]),
-                               np.array([q[1] * sv]), dt, substeps)
-        return np.nan_to_num((xs[:, 0] - x) / sx, nan=1e3)
-
-    sol = least_squares(resid, [x[0] / sx, v_guess / sv], method="lm", xtol=1e-12, ftol=1e-12, max_nfev=200)
-    return float(sol.x[0] * sx), float(sol.x[1] * sv)
-
-
-def _closed(model) -> bool:
-    return all(c.expression() is not None for c in model.curves.values())
-
-
-def _model_accel(model):
-    f1, f2, g, b = model.curves["f1"], model.curves["f2"], float(model.gain), float(model.offset)
-    return lambda x, v, u: g * u - f1(v) - f2(x) - b
-
-
-# ------------------------------------------------------------------------------ the refinement
-def refine_output_error(model, traj, *, hold: str = "linear", substeps: int = 4, segment_length: int = 256,
-                        max_nfev: int = 60, time_budget: float = 600.0):
-    """Refine a closed-form model's coefficients, gain and constant by output error.
-
-    Parameters
-    ----------
-    model : FittedModel
-        Curves must be closed forms. Basis curves: their coefficients are refined. Symbolic curves:
-        one coefficient per additive term (also an implicit 1, as in ``z**3 - z``) and every Float
-        inside a term (``tanh(50.0*z)``); additive constants (they trade with ``b``) and exponents
-        stay fixed.
-    traj : Trajectory
-        The estimation record, uniformly sampled; ``v`` (when present) gives the segments'
-        starting velocities.
-    hold : {"linear", "zoh", "bandlimited"}
-        The input between samples (:mod:`charcurves.simulate._sampled`); the refined model is an
-        ODE for that input reconstruction.
-    substeps : int
-        RK4 steps per sample interval (1: the discrete-time RK4 model of the literature).
-    segment_length : int
-        Samples per shooting segment (module docstring); the record is cut into
-        ``round(n / segment_length)`` equal segments (at most ``n_segments - 1`` samples at the end
-        are left out).
-    max_nfev : int
-        Largest number of least-squares iterations (each: one batched simulation for the
-        Jacobian and one for the step).
-    time_budget : float
-        Seconds; the optimiser stops at the next iteration after it is spent.
+        The equation-error fit (or post-SR model) to start from.
+    prepared : Trajectory or MultiTrajectory
+        The record with the derivatives the fit used (their smoothed states start the segments).
+    measured : Trajectory or MultiTrajectory
+        The record as measured (its positions are the output that is fitted).
+    settings : OutputError
+    strict : bool
+        Raise (ConfigError/DataError) when output error cannot run on this model or record, instead of
+        keeping the equation-error model with the reason in ``info`` (the fallback of ``objective="auto"``).
+    preset : TrainingPreset
+        Its ``combine`` and ``combine_tol`` decide which ensemble members are averaged.
 
     Returns
     -------
     FittedModel
-        A new model with the refined curves, gain and constant; ``info["output_error"]`` holds the
-        coefficients before and after, the segmented and whole-record free-run RMSE before and
-        after, the initial state, the iterations and the time. When the refinement fails (the
-        free run diverges from every start), the input model is returned with a warning and the
-        reason in ``info["output_error"]["status"]``. The coefficients are labelled by what they
-        multiply (``info["output_error"]["parameters"]``, e.g. "f2:z**3", "g", "b").
+        The refitted model, or the input model when output error is not possible or does not
+        improve; ``info["output_error"]`` says what happened either way.
     """
-    from scipy.optimize import least_squares
-    from scipy.sparse import csr_matrix
+    import torch
 
-    from ..simulate._sampled import rk4_sampled
+    from ..curves import trainable
+    from ..templates import ForwardModel, record_columns
+    from ._gradient_fit import finish_model
+    from ._shooting import CurveBlock, ShootingProblem
+    from ._train import train
 
-    check_refine_options({"hold": hold, "substeps": substeps, "segment_length": segment_length,
-                          "max_nfev": max_nfev, "time_budget": time_budget})
-    if getattr(model.template, "is_general", False):
-        raise ConfigError(f"output-error refinement simulates the separable family; the {model.template.family} "
-                          "template is not supported (use refine='none')")
     started = time.perf_counter()
-    par = _Parametrised(model)
-    ua, um, ub = _inputs_for(traj, hold, substeps)
-    y = np.asarray(traj.x, dtype=float)
-    n = y.shape[0]
-    if n < 32:
-        raise DataError(f"output-error refinement needs at least 32 samples, the record has {n}")
-    dt = float(traj.dt)
-    vel = _velocity(traj)
-    n_seg = max(1, int(round(n / min(segment_length, n))))
-    L = n // n_seg
-    starts = np.arange(n_seg) * L
-    # stage inputs per segment: ((L - 1) * substeps, n_seg, 1), broadcasting over candidates
-    idx = starts[None, :] * substeps + np.arange((L - 1) * substeps)[:, None]
-    Ua, Um, Ub = (arr[idx][:, :, None] for arr in (ua, um, ub))
-    Y = y[starts[None, :] + np.arange(L)[:, None]]  # (L, n_seg)
-
-    P = par.theta0.size
-    theta0 = par.theta0.copy()
-    scale = np.abs(theta0)
-    sy = max(float(np.std(y)), 1e-300)
-    sv = max(float(np.std(vel)), 1e-300)
-    ib = P - 1
-    force_scale = float(np.std(np.asarray(traj.F))) * abs(float(model.gain))
-    scale[ib] = max(scale[ib], 0.05 * force_scale, 1e-12)  # b may start at 0
-    scale[scale == 0] = 1.0
-    s0 = np.r_[y[starts], vel[starts]].reshape(2, n_seg)
-    q0 = np.r_[theta0 / scale, (s0[0] / sy), (s0[1] / sv)]
-    # layout of q: [shared parameters (P) | x0 of the segments | v0 of the segments], all scaled to ~1
-    n_q = P + 2 * n_seg
-    bad_value = 10.0  # residual (in units of std(y)) given to samples of diverged runs
-
-    def unpack(q):
-        return q[:P] * scale, q[P:P + n_seg] * sy, q[P + n_seg:] * sv
-
-    def simulate(theta_batch, x0, v0):
-        xs, _, _ = rk4_sampled(par.accel(theta_batch), Ua, Um, Ub, x0, v0, dt, substeps)
-        return xs  # (L, n_seg, K)
-
-    cache: dict = {"best": (np.inf, q0)}
-
-    def residuals(q):
-        if time.perf_counter() - started > time_budget:
-            raise _BudgetSpent
-        theta, x0, v0 = unpack(q)
-        xs = simulate(theta[:, None], x0[:, None], v0[:, None])[:, :, 0]
-        r = np.nan_to_num(((xs - Y) / sy).T.ravel(), nan=bad_value, posinf=bad_value, neginf=-bad_value)
-        cost = float(r @ r)
-        if cost < cache["best"][0]:
-            cache["best"] = (cost, np.array(q, copy=True))
-        return r
-
-    seg_of_row = np.repeat(np.arange(n_seg), L)
-    cols = np.column_stack([np.tile(np.arange(P), (n_seg * L, 1)), P + seg_of_row, P + n_seg + seg_of_row]).ravel()
-    indptr = np.arange(n_seg * L + 1) * (P + 2)
-
-    def jacobian(q):
-        theta, x0, v0 = unpack(q)
-        K = P + 3
-        thb = np.repeat(theta[:, None], K, axis=1)
-        thb[np.arange(P), 1 + np.arange(P)] += _FD_STEP * scale
-        X0 = np.repeat(x0[:, None], K, axis=1)
-        V0 = np.repeat(v0[:, None], K, axis=1)
-        X0[:, P + 1] += _FD_STEP * sy
-        V0[:, P + 2] += _FD_STEP * sv
-        xs = simulate(thb, X0, V0)  # (L, n_seg, K)
-        d = (xs[:, :, 1:] - xs[:, :, :1]) / (_FD_STEP * sy)  # derivative of r = (x - y)/sy per unit q
-        d = np.nan_to_num(d, nan=0.0, posinf=0.0, neginf=0.0)
-        data = d.transpose(1, 0, 2).reshape(n_seg * L, P + 2).ravel()
-        cache["jac_evals"] = cache.get("jac_evals", 0) + 1
-        return csr_matrix((data, cols, indptr), shape=(n_seg * L, n_q))
-
-    def residuals_unbudgeted(q):
-        theta, x0, v0 = unpack(q)
-        xs = simulate(theta[:, None], x0[:, None], v0[:, None])[:, :, 0]
-        return np.nan_to_num(((xs - Y) / sy).T.ravel(), nan=bad_value, posinf=bad_value, neginf=-bad_value)
-
-    r0 = residuals_unbudgeted(q0)
-    seg_rmse_before = float(np.sqrt(np.mean(r0**2)) * sy)
+    template = model.template
+    report = {"objective": "output-error", "hold": settings.hold}
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            sol = least_squares(residuals, q0, jac=jacobian, method="trf", tr_solver="lsmr", x_scale=1.0,
-                                ftol=1e-9, xtol=1e-9, gtol=1e-10, max_nfev=int(max_nfev))
-        q_best, message, nfev = sol.x, str(sol.message), int(sol.nfev)
-    except _BudgetSpent:  # keep the best point evaluated so far
-        q_best, message, nfev = cache["best"][1], f"time budget of {time_budget:g} s spent", -1
-        cache["timed_out"] = True
-    theta, x0s, v0s = unpack(q_best)
-    seg_rmse_after = float(np.sqrt(np.mean(residuals_unbudgeted(q_best) ** 2)) * sy)
-    diverged = not np.all(np.isfinite(simulate(theta[:, None], x0s[:, None], v0s[:, None])))
-    refined = par.build(theta)
-    info = {
-        "hold": hold,
-        "substeps": int(substeps),
-        "segment_length": int(L),
-        "segments": int(n_seg),
-        "parameters": par.labels,
-        "coefficients_before": theta0.tolist(),
-        "coefficients_after": theta.tolist(),
-        "segmented_rmse_before": seg_rmse_before,
-        "segmented_rmse_after": seg_rmse_after,
-        "iterations": nfev,
-        "jacobians": int(cache.get("jac_evals", 0)),
-        "optimizer": message,
-        "seconds": None,
-    }
-    if diverged or not np.isfinite(seg_rmse_after) or seg_rmse_after > seg_rmse_before:
-        info["status"] = "failed: the free run diverges or does not improve; kept the equation-error model"
-        info["seconds"] = time.perf_counter() - started
-        warnings.warn(f"output-error refinement failed ({info['status']})", RuntimeWarning, stacklevel=2)
-        out = par.build(theta0)
-        out.info["output_error"] = info
-        return out
-    before, _ = free_run_error(model, traj, hold=hold, substeps=substeps, x0=float(s0[0, 0]), v0=float(s0[1, 0]))
-    after, _ = free_run_error(refined, traj, hold=hold, substeps=substeps, x0=float(x0s[0]), v0=float(v0s[0]))
-    info.update({
-        "status": "ok" if not cache.get("timed_out") else "time budget spent",
-        "free_run_rmse_before": before,
-        "free_run_rmse_after": after,
-        "initial_state": [float(x0s[0]), float(v0s[0])],
-        "seconds": time.perf_counter() - started,
+        fm = ForwardModel(template)
+        dt = _uniform_step(measured)
+        refits = {name: trainable(model.curves[name]) for name in template.curve_names}
+    except (ConfigError, DataError) as exc:
+        if strict:
+            raise
+        return _kept(model, report, f"not run: {exc}")
+    dtype = torch.float64
+    n = measured.n_samples
+    L = int(settings.segment_length or choose_segment_length(n))
+    L = min(L, n)
+    positions = [s for s in fm.layout if "__d" not in s]
+    meas_cols = _positions(measured, positions) if _has_columns(measured, positions) else None
+    prep_cols = record_columns(prepared, template)
+    substeps = int(settings.substeps or choose_substeps(np.asarray(prep_cols[positions[0]])))
+    L, starts, contiguous = _segments(n, L, int(settings.max_segments))
+    S = starts.size
+    M = max(r.theta.shape[0] for r in refits.values())
+    pinned = {nm: bool(model.curves[nm].pinned_at_zero) for nm in template.curve_names}
+    offsets = template.anchored_offsets(pinned) if template.n_equations == 1 or template.is_general else []
+    offsets = sorted(set(offsets) | ({0} if model.offset != 0.0 else set()))
+    scalars = list(template.scalar_names)
+    T = lambda a: torch.as_tensor(np.asarray(a, dtype=float), dtype=dtype)  # noqa: E731
+    col = lambda v: torch.full((M, 1), float(v), dtype=dtype)  # noqa: E731
+    blocks, parts = [], []
+    restore = {}
+    for name in template.curve_names:
+        rf = refits[name]
+        theta = np.repeat(rf.theta, M // rf.theta.shape[0] + 1, axis=0)[:M] if rf.theta.shape[0] != M else rf.theta
+        theta = np.array(theta, dtype=float)
+        frozen = []
+        sl = rf.param.slices() if hasattr(rf.param, "slices") else {}
+        if "jump_log_eps" in sl:  # train with a width RK4 integrates; the sharp one comes back afterwards
+            j = sl["jump_log_eps"].start
+            restore[name] = theta[:, j].copy()
+            theta[:, j] = np.maximum(theta[:, j], _smooth_jump_raw(rf, prep_cols, fm, name, substeps, dt))
+            frozen.append(j)
+        blocks.append(CurveBlock(name, rf.param, col(rf.center), col(rf.half_width), col(rf.out_scale), col(rf.shift),
+                                 frozen))
+        parts.append(T(theta))
+    sc = model.scalars
+    for s in scalars:
+        parts.append(col(sc.get(s, 0.0)))
+    for e in offsets:
+        parts.append(col(model.offset if e == 0 else sc.get(f"b{e + 1}", 0.0)))
+    if template.free_gain:
+        parts.append(col(model.gain))
+    y0 = np.stack([np.asarray(prep_cols[name], dtype=float)[starts] for name in fm.layout], axis=1)  # (S, D)
+    parts.append(T(y0.reshape(1, -1)).expand(M, -1))
+    theta0 = torch.cat(parts, dim=1)
+    source = meas_cols if meas_cols is not None else prep_cols
+    meas = np.stack([np.asarray(source[p], dtype=float)[starts[:, None] + np.arange(L)[None, :]] for p in positions],
+                    axis=-1)  # (S, L, O)
+    inputs = {f: _stage_arrays(prep_cols[f], starts, L, substeps, settings.hold, dtype) for f in template.forces}
+    t = np.asarray(prep_cols["t"], dtype=float)
+    frac = np.arange((L - 1) * substeps) / substeps
+    t_idx = starts[None, :] + np.floor(frac).astype(int)[:, None]
+    tt = t[t_idx] + (frac - np.floor(frac))[:, None] * dt
+    h = dt / substeps
+    times = tuple(T(tt + c * h) for c in (0.0, 0.5, 1.0))
+    scales = T([max(float(np.std(np.asarray(prep_cols[name], dtype=float))), 1e-12) for name in fm.layout])
+    problem = ShootingProblem(fm, blocks, scalars, offsets, template.free_gain, template.gain, inputs, times, T(meas),
+                              [fm.layout.index(p) for p in positions], scales, dt, substeps, settings.continuity,
+                              torch.as_tensor(contiguous, dtype=torch.bool), weight_decay=1e-10, bayesian=False)
+    with torch.no_grad():
+        loss0 = problem.loss(theta0)
+    if not bool(torch.isfinite(loss0).any()):
+        return _kept(model, report, "failed: the free run of the equation-error model diverges on every segment")
+    theta, log = train(problem, theta0, adam_steps=0, adam_lr=0.0, lm_max_iter=int(settings.max_iter),
+                       lm_tol=float(settings.tol), stop_loss=0.0, progress=progress)
+    with torch.no_grad():
+        loss = problem.loss(theta).double().numpy()
+        X0, _, _ = problem.simulate(theta0, need_jac=False)
+        X1, _, _ = problem.simulate(theta, need_jac=False)
+    finite = np.isfinite(loss)
+    if not finite.any():
+        return _kept(model, report, "failed: the free run diverged during training")
+    loss = np.where(finite, loss, np.inf)
+    best = int(np.argmin(loss))
+    members = (np.flatnonzero(loss <= loss[best] * (1.0 + preset.combine_tol)) if preset.combine == "mean"
+               else np.array([best]))
+    rows = theta.double().numpy()[members]
+    curves = {}
+    for i, name in enumerate(template.curve_names):
+        o = problem.block_offsets[i]
+        th = rows[:, o:o + blocks[i].n_params].copy()
+        if name in restore:
+            th[:, refits[name].param.slices()["jump_log_eps"].start] = restore[name][members]
+        curves[name] = refits[name].rebuild(th)
+    new_scalars = {s: float(rows[:, problem.scalar_index[s]].mean()) for s in scalars}
+    offs = {e: float(rows[:, problem.offset_index[e]].mean()) for e in offsets}
+    gain = float(rows[:, problem.gain_index].mean()) if template.free_gain else float(model.gain)
+    if not np.isfinite(gain) or gain == 0.0:
+        return _kept(model, report, "failed: the gain became zero or not finite")
+    labels = [lab for name in template.curve_names for lab in refits[name].labels] + list(scalars)
+    labels += [("b" if e == 0 else f"b{e + 1}") for e in offsets] + (["g"] if template.free_gain else [])
+    order = list(range(problem.n_shared))
+    if template.free_gain and offsets:  # the older report's order: ..., g, b
+        order = order[:-1 - len(offsets)] + [problem.gain_index] + order[-1 - len(offsets):-1]
+        labels = labels[:-1 - len(offsets)] + ["g"] + labels[-1 - len(offsets):-1]
+    seg_before = float(np.sqrt(np.mean((X0.double().numpy() - meas[None]) ** 2)))
+    seg_after = float(np.sqrt(np.mean((X1.double().numpy()[members] - meas[None]) ** 2)))
+    info = dict(model.info)
+    info["loss_equation_error_before"] = float(model.loss)
+    report.update({
+        "segment_length": L, "segments": int(S), "contiguous_pairs": int(contiguous.sum()),
+        "substeps": substeps, "continuity": float(settings.continuity), "members": int(members.size),
+        "iterations": log.lm_iterations, "stopped_by": log.stopped_by,
+        "segmented_rmse_before": seg_before, "segmented_rmse_after": seg_after,
+        "loss_before": float(loss0.double().min()), "loss_after": float(loss[best]),
+        "output": "measured positions" if meas_cols is not None else "smoothed positions (no raw columns)",
+        "parameters": labels,
+        "coefficients_before": theta0.double().numpy()[:, order].mean(axis=0).tolist(),
+        "coefficients_after": rows[:, order].mean(axis=0).tolist(),
     })
-    info["loss_before"] = float(model.loss)
-    refined.loss = float(np.mean(refined.force_residual(traj) ** 2)) if traj.has_derivatives else float("nan")
-    refined.info["output_error"] = info
-    refined.method = model.method
-    return refined
+    if log.interrupted:
+        info["interrupted"] = True
+    new = finish_model(template, model.method, curves, gain, offs, new_scalars, prepared, info, None)
+    if not seg_after <= seg_before * (1 + 1e-9):
+        return _kept(model, report, "failed: the free run did not improve; kept the equation-error model")
+    y_first = rows[:, problem.n_shared:problem.n_shared + fm.n_state].mean(axis=0)
+    report["free_run_rmse_before"] = _free_run_rmse(model, measured, meas_cols, y_first, settings.hold, substeps)
+    report["free_run_rmse_after"] = _free_run_rmse(new, measured, meas_cols, y_first, settings.hold, substeps)
+    report["initial_state"] = y_first.tolist()
+    report["status"] = "interrupted" if log.interrupted else "ok"
+    report["seconds"] = time.perf_counter() - started
+    new.info["output_error"] = report
+    new.info["objective"] = "output-error"
+    return new
+
+
+def _free_run_rmse(model, record, meas_cols, y0, hold, substeps):
+    """RMSE of one free run of the whole record (separable family; None for other templates or
+    without measured positions)."""
+    from ..data import rk4_sampled, stage_inputs
+
+    if model.template.is_general or meas_cols is None:
+        return None
+    f1, f2 = model.curves["f1"].float_function(), model.curves["f2"].float_function()
+    g, b = float(model.gain), float(model.offset)
+
+    def accel(x, v, u):
+        return g * u - f1(v) - f2(x) - b
+
+    ua, um, ub = stage_inputs(np.asarray(record.F, dtype=float), substeps, hold)
+    x, _, status = rk4_sampled(accel, ua, um, ub, float(y0[0]), float(y0[1]), _uniform_step(record), substeps)
+    if status != "ok":
+        return float("inf")
+    return float(np.sqrt(np.mean((np.asarray(x) - meas_cols["x"]) ** 2)))
+
+
+def _uniform_step(record, tol: float = 1e-3) -> float:
+    """The sample step of a uniformly sampled record (ConfigError otherwise: a free run driven by a
+    sampled input needs uniform steps)."""
+    t = np.asarray(record.t, dtype=float)
+    steps = np.diff(t)
+    dt = float(np.median(steps))
+    if not dt > 0 or float(np.max(np.abs(steps - dt))) > tol * dt:
+        raise DataError("output error needs uniform sampling (the free run is driven by the sampled input); "
+                        "resample the record onto a uniform grid or use objective='equation-error'")
+    return dt
+
+
+def _has_columns(record, positions) -> bool:
+    from ..data import Trajectory
+
+    if isinstance(record, Trajectory):
+        return positions == ["x"]
+    return all(p in record.states for p in positions)
+
+
+def _smooth_jump_raw(rf, cols, fm, name, substeps, dt) -> float:
+    """Raw width parameter of the narrowest jump fixed-step RK4 integrates stably: the jump acts as a
+    damping mu / eps, and RK4 needs (dt / substeps) * mu / eps below ~2, so eps >= mu * h / 2 (in
+    units of the curve's scaled argument), and at least 0.2 % of the argument's range."""
+    from ..curves import jump_log_eps  # noqa: F401  (the raw parameter is mapped by jump_log_eps)
+
+    sl = rf.param.slices()
+    mu = float(np.max(np.abs(rf.theta[:, sl["jump_height"]]))) * abs(rf.out_scale)
+    h = dt / substeps
+    eps_data = max(mu * h / 2.0, 2e-3 * rf.half_width)
+    return math.log(max(eps_data / rf.half_width, 1e-7))
+
+
+def _kept(model, report: dict, status: str):
+    report = dict(report)
+    report["status"] = status
+    model.info["output_error"] = report
+    model.info["objective"] = "equation-error (output error " + ("not possible" if status.startswith("not") else
+                                                                 "failed") + ")"
+    model.info.setdefault("warnings", []).append(f"output error: {status}")
+    return model
+
+
+def refine_output_error(model, traj, *, hold: str = "linear", substeps: int = 4, segment_length: int = 256,
+                        max_nfev: int = 60, time_budget: float = 600.0):
+    """Output error of a fitted model on its record (the older entry point; see :func:`output_error_fit`)."""
+    from ._presets import get_preset
+
+    settings = OutputError(segment_length=segment_length, substeps=substeps, hold=hold, max_iter=max_nfev,
+                           time_budget=time_budget)
+    settings.check()
+    return output_error_fit(model, traj, traj, settings, preset=get_preset("default"), strict=True)
 
 
 # ------------------------------------------------------------------------------ reporting (CLI)
 def closed_form_text(model, digits: int = 6) -> str:
-    """``x'' + f1(x') + f2(x) + b = g F`` with the closed forms written out."""
+    """``x'' + f1(x') + f2(x) + b = g F`` with the closed forms written out (separable family)."""
     import sympy as sp
 
     parts = []
@@ -506,102 +339,16 @@ def summary_lines(model) -> list[str]:
     oe = model.info.get("output_error", {})
     if not oe:
         return []
+    if not oe.get("status", "").startswith(("ok", "interrupted")):
+        return [f"output error: {oe.get('status')}"]
     how = (f"hold {oe['hold']}, {oe['substeps']} RK4 step{'s' if oe['substeps'] > 1 else ''} per sample, "
            f"{oe['segments']} segment{'s' if oe['segments'] > 1 else ''} of {oe['segment_length']} samples")
-    if oe.get("status", "").startswith("failed"):
-        return [f"output-error refinement ({how}): {oe['status']}"]
-    return [
-        f"output-error refinement ({how}; {oe['iterations']} evaluations, status {oe['status']}):",
-        f"  free-run RMSE of x on the estimation record {oe['free_run_rmse_before']:.4g} -> "
-        f"{oe['free_run_rmse_after']:.4g} (segmented {oe['segmented_rmse_before']:.4g} -> "
-        f"{oe['segmented_rmse_after']:.4g})",
-        "  closed form: " + closed_form_text(model),
-    ]
-
-
-def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_col="F", sample_rate=None,
-                 hold=None, substeps=None, out_dir=None) -> list[str]:
-    """``charcurves validate``: free runs of a saved model on row spans of a CSV record.
-
-    The initial state of each span is estimated from its first 128 samples
-    (:func:`estimate_initial_state`); the RMSE is over every sample of the span.
-    """
-    import json
-    import os
-
-    from ..data._trajectory import Trajectory
-    from ._model import load_model
-
-    model = load_model(model_dir)
-    if getattr(model.template, "is_general", False):
-        raise ConfigError(f"validate simulates the separable family; the {model.template.family} template is "
-                          "not supported")
-    refined = model.info.get("output_error", {})
-    hold = hold or refined.get("hold", DEFAULT_OPTIONS["hold"])
-    substeps = substeps if substeps is not None else refined.get("substeps", DEFAULT_OPTIONS["substeps"])
-    from ..simulate._sampled import _check_hold
-
-    _check_hold(hold, substeps)
-    full = Trajectory.from_csv(csv, time_col=time_col, x_col=x_col, force_col=force_col, sample_rate=sample_rate)
-    spans = rows or [slice(0, full.n_samples)]
-    results, sims = [], []
-    for span in spans:
-        start, stop, _ = span.indices(full.n_samples)
-        if stop - start < 16:
-            raise DataError(f"--rows {span.start}:{span.stop} selects {max(stop - start, 0)} of the record's "
-                            f"{full.n_samples} rows; give a span of at least 16 rows inside the record")
-        seg = full.slice(slice(start, stop))
-        rmse, res = free_run_error(model, seg, hold=hold, substeps=substeps)
-        x = np.asarray(seg.x)
-        results.append({"rows": [start, stop], "status": res.status, "rmse": rmse,
-                        "rmse_relative_to_std": rmse / float(np.std(x)) if np.std(x) > 0 else None,
-                        "std_x": float(np.std(x)), "seconds": res.seconds})
-        sims.append((seg, res, f"{start}:{stop}"))
-    lines = [f"free run of {model_dir} ({model.method}; hold {hold}, {substeps} RK4 steps per sample; initial "
-             "state fitted to the first 128 samples)"]
-    for r in results:
-        rel = "" if r["rmse_relative_to_std"] is None else f" ({100 * r['rmse_relative_to_std']:.3g} % of std x)"
-        lines.append(f"  rows {r['rows'][0]}:{r['rows'][1]}: {r['status']}, RMSE {r['rmse']:.5g}{rel}, "
-                     f"{r['seconds']:.2f} s")
-    if out_dir is not None:
-        from ..io._csv import atomic_write_bytes
-
-        os.makedirs(out_dir, exist_ok=True)
-        doc = {"model": os.path.abspath(os.fspath(model_dir)), "csv": os.path.abspath(os.fspath(csv)), "hold": hold,
-               "substeps": int(substeps), "segments": results}
-        atomic_write_bytes(os.path.join(out_dir, "validation.json"), json.dumps(doc, indent=1).encode())
-        _validation_figure(os.path.join(out_dir, "validation.png"), sims)
-        lines.append(f"wrote {os.path.join(out_dir, 'validation.json')}, validation.png")
+    lines = [f"output-error refinement ({how}; {oe['iterations']} iterations, status {oe['status']}):",
+             f"  RMSE of the segments' free runs against the measured positions {oe['segmented_rmse_before']:.4g} -> "
+             f"{oe['segmented_rmse_after']:.4g}"]
+    if oe.get("free_run_rmse_after") is not None:
+        lines.append(f"  RMSE of one free run of the whole record {oe['free_run_rmse_before']:.4g} -> "
+                     f"{oe['free_run_rmse_after']:.4g}")
+    if not model.template.is_general and model.is_symbolic:
+        lines.append("  closed form: " + closed_form_text(model))
     return lines
-
-
-def _validation_figure(path, sims) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(len(sims), 2, figsize=(12, 2.8 * len(sims)), squeeze=False,
-                             gridspec_kw={"width_ratios": [1, 2]})
-    for row, (seg, res, label) in enumerate(sims):
-        t, x = np.asarray(seg.t), np.asarray(seg.x)
-        n = res.x.size
-        mid = x.size // 2
-        win = slice(max(0, mid - 75), min(x.size, mid + 75))
-        ax = axes[row, 0]
-        ax.plot(t[win], x[win], "k", lw=1.5, label="measured")
-        if n:
-            ax.plot(t[:n][win], res.x[win], "C1", lw=1.0, label="free run")
-        ax.set_title(f"{seg.name} rows {label}: zoom", fontsize=9)
-        ax.set_xlabel("t")
-        ax.set_ylabel("x")
-        ax.legend(fontsize=7)
-        ax = axes[row, 1]
-        if n:
-            ax.plot(t[:n], res.x - x[:n], "C3", lw=0.5)
-        ax.set_title(f"simulation error ({res.status}; std x {np.std(x):.4g})", fontsize=9)
-        ax.set_xlabel("t")
-        ax.set_ylabel("simulated - measured")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)

@@ -103,9 +103,9 @@ def largest_lyapunov_exponent(f1: Callable, f2: Callable, forcing: Callable, x0:
     y = np.array([x0, v0], dtype=float)
     if t_transient > 0:
         y = solve_ivp(state_rhs, (0.0, t_transient), y, method=method, rtol=rtol, atol=atol).y[:, -1]
-    from ..simulate._forward import _solver_class
+    from ..simulate import solver_class
 
-    solver_cls = _solver_class(method)
+    solver_cls = solver_class(method)
     t, t_end = float(t_transient), float(t_transient + t_total)
     state = np.concatenate([y, [1.0, 0.0]])
     total_log = 0.0

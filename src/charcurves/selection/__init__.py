@@ -1,15 +1,17 @@
-"""Model selection (the paper's appendix B), symmetry detection and uncertainty bands."""
+"""Model selection (the paper's appendix B): the three validation loops, the family search and
+uncertainty bands. Ensembles and parity tests live in :mod:`charcurves.fitting` (``symmetry="auto"``
+uses them while fitting) and are re-exported here."""
 
-from ._bands import ENSEMBLE_KINDS as ENSEMBLE_KINDS
-from ._bands import Ensemble as Ensemble
+from ..fitting import ENSEMBLE_KINDS as ENSEMBLE_KINDS
+from ..fitting import Ensemble as Ensemble
+from ..fitting import bootstrap_records as bootstrap_records
+from ..fitting import detect_symmetry as detect_symmetry
+from ..fitting import fit_ensemble as fit_ensemble
+from ..fitting import fit_ensembles as fit_ensembles
+from ..fitting import parity_tests as parity_tests
 from ._bands import attach_bands as attach_bands
 from ._bands import band_coverage as band_coverage
-from ._bands import bootstrap_records as bootstrap_records
 from ._bands import curve_bands as curve_bands
-from ._bands import fit_ensemble as fit_ensemble
-from ._symmetry import detect_symmetry as detect_symmetry
-from ._symmetry import parity_tests as parity_tests
-from ._bands import fit_ensembles as fit_ensembles
 from ._loops import LoopResult as LoopResult
 from ._loops import NoiseFloor as NoiseFloor
 from ._loops import SelectionReport as SelectionReport

@@ -15,10 +15,9 @@ __all__ = ["run_select"]
 def run_select(a, *, say, check_out) -> int:
     """Run the family search for the parsed command line ``a``; 0 whether or not a family is accepted."""
     from ..data import Trajectory
-    from ..templates._fit import read_record
-    from ..templates._separable import get_template
+    from ..templates import get_template, read_record
     from ..io._csv import atomic_write_bytes
-    from ._bands import MIN_MEMBERS
+    from ..fitting import MIN_MEMBERS
     from ._loops import select_family
 
     families = [f.strip() for f in a.families.split(",") if f.strip()]

@@ -279,10 +279,10 @@ class _RunGuard:
         self.next, self.stuck, self.t, self.armed = float(self.t_eval[0]), 0, 0.0, True
 
     def _stop(self, status: str, message: str):
-        from ..simulate._families import _Stop
+        from ..simulate import SimulationStop
 
         self.armed = False
-        raise _Stop(status, message, self.t)
+        raise SimulationStop(status, message, self.t)
 
     def tick(self, t: float) -> None:
         self.t = float(t)
@@ -345,7 +345,7 @@ def _forward(model, t, x0, v0, forcing, box, time_budget):
         res = simulate_model(model, t, x0["x"], v0["x"], forcing["F"], box={"x": box["x"]["x"], "v": box["x"]["v"]},
                              time_budget=time_budget, rtol=1e-6, atol=1e-8)
         return res.t, np.asarray(res.x, dtype=float).reshape(-1, 1), res.status
-    from ..simulate._families import simulate_template_model
+    from ..simulate import simulate_template_model
 
     guard = _RunGuard(t)
     first = next(iter(forcing))
@@ -538,8 +538,8 @@ def select_family(trajectories: Sequence, families: Sequence[str] = DEFAULT_FAMI
     """
     import time
 
-    from ..fitting._estimator import CharacteristicCurves
-    from ._bands import fit_ensembles
+    from ..fitting import CharacteristicCurves
+    from ..fitting import fit_ensembles
 
     trajectories = list(trajectories)
     if not trajectories:
@@ -549,7 +549,7 @@ def select_family(trajectories: Sequence, families: Sequence[str] = DEFAULT_FAMI
         raise ConfigError("no candidate family given; e.g. --families separable,position-damping")
     for family in families:  # an unknown family or method fails now, not after the first family's fits
         CharacteristicCurves(family=family, method=method, random_state=random_state, threads=threads,
-                             **estimator_params)._resolve()
+                             **estimator_params).resolve()
     split = len(trajectories) == 1
     if split:
         trajectories = split_record(trajectories[0], 2)

@@ -156,7 +156,7 @@ def _network_scalar(f: Callable[[np.ndarray], np.ndarray]) -> Callable[[float], 
 def _jump_members(curve) -> tuple[np.ndarray, np.ndarray]:
     """Per-member jump heights and widths of a network curve, in the curve's own units."""
     # imported here: the module loads torch, which a network curve has loaded already anyway
-    from ..curves._neural import jump_log_eps  # the raw width parameter is mapped, not exp'd
+    from ..curves import jump_log_eps  # the raw width parameter is mapped, not exp'd
 
     sl = curve.spec.slices()
     mu = curve.theta[:, sl["jump_height"]].reshape(-1) * curve.out_scale

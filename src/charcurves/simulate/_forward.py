@@ -69,7 +69,7 @@ def sinusoidal_forcing(A: float, Omega: float) -> Callable[[float], float]:
     return lambda t: A * np.cos(Omega * t)
 
 
-def _solver_class(method):
+def solver_class(method):
     import scipy.integrate as si
 
     cls = getattr(si, method, None) if isinstance(method, str) and method in _SOLVERS else method
@@ -373,7 +373,7 @@ def simulate_model(model, t_eval, x0: float, v0: float, forcing: Callable[[float
         raise ConfigError(f"max_events must be a positive integer, got {max_events!r}")
     if stick_step is not None and not (np.isfinite(stick_step) and stick_step > 0):
         raise ConfigError(f"stick_step must be a positive time step, got {stick_step!r}")
-    solver = _solver_class(method)
+    solver = solver_class(method)
     t0 = time.perf_counter()
     f1, f2 = prepare_model_curves(model, evaluation=evaluation, jump=jump, table_rtol=table_rtol)
     run = _Run(f1, f2, float(model.gain), float(model.offset), forcing, t_eval, solver, float(rtol), float(atol),

@@ -1,12 +1,16 @@
-"""Symbolic regression: engines behind one interface, post-SR distillation, SR and SR-CC.
+"""Symbolic regression: engines behind one interface, expression utilities, curve distillation.
 
 Public API
 ----------
 make_engine(sr_options) -> SymbolicRegressionEngine
     Operon (default) or PySR, with the shared parsimony selection and constant polishing.
 distill_curve(curve, engine, *, n, random_state) -> SymbolicFittedCurve
-distill_model(model, *, sr_options, random_state) -> FittedModel        (post-SR)
-fit_sr(traj, template, ...) / fit_sr_cc(traj, template, ...) -> FittedModel
+    A learned curve's closed form (post-SR works curve by curve through it).
+decompose(expr, var_of_curve)
+    Split an expression of several variables into univariate parts.
+
+Fitting with symbolic curves (SR, SR-CC) and post-SR of whole models are fitters, in
+:mod:`charcurves.fitting`.
 
 Examples
 --------
@@ -18,29 +22,30 @@ Examples
 ['z', 'z**3']
 """
 
-from ._distill import distill_curve, distill_model, has_jump
+from ._decompose import decompose
+from ._distill import distill_curve, distill_curve_front, has_jump
 from ._engine import (
     DEFAULT_SR_OPTIONS,
     OPERATORS,
-    SELECTION_CRITERIA,
+    POLY_OPERATORS,
     SR_OPTION_KEYS,
-    FrontEntry,
+    TANH_OPERATORS,
     OperonEngine,
     PySREngine,
-    SRResult,
     SymbolicRegressionEngine,
-    expression_complexity,
     make_engine,
-    polish_constants,
-    select_model,
+    operators_option,
 )
-from ._methods import decompose, fit_sr, fit_sr_cc
+from ._expressions import eval_expression, expression_complexity, parse_infix, polish_constants, split_terms
+from ._selection import SELECTION_CRITERIA, FrontEntry, SRResult, select_model
 
 __all__ = [
     "DEFAULT_SR_OPTIONS",
     "OPERATORS",
+    "POLY_OPERATORS",
     "SELECTION_CRITERIA",
     "SR_OPTION_KEYS",
+    "TANH_OPERATORS",
     "FrontEntry",
     "OperonEngine",
     "PySREngine",
@@ -48,12 +53,14 @@ __all__ = [
     "SymbolicRegressionEngine",
     "decompose",
     "distill_curve",
-    "distill_model",
+    "distill_curve_front",
+    "eval_expression",
     "expression_complexity",
-    "fit_sr",
-    "fit_sr_cc",
     "has_jump",
     "make_engine",
+    "operators_option",
+    "parse_infix",
     "polish_constants",
     "select_model",
+    "split_terms",
 ]

@@ -31,19 +31,10 @@ import time
 import numpy as np
 
 from .._errors import ConfigError
-from ..curves._fitted import FittedCurve, SymbolicFittedCurve
-from ..curves._neural import jump_log_eps
-from ..templates._separable import apply_gauge, sticking_mask
-from ._engine import (
-    POLY_OPERATORS,
-    TANH_OPERATORS,
-    SymbolicRegressionEngine,
-    expression_complexity,
-    make_engine,
-    operators_option,
-)
+from ..curves import FittedCurve, SymbolicFittedCurve, jump_log_eps
+from ._engine import POLY_OPERATORS, TANH_OPERATORS, SymbolicRegressionEngine, make_engine
 
-__all__ = ["distill_curve", "distill_model", "has_jump"]
+__all__ = ["distill_curve", "distill_curve_front", "has_jump"]
 
 #: One grid step carrying more than this share of the curve's range (and ...)
 _JUMP_RANGE_SHARE = 0.05
@@ -102,10 +93,10 @@ def distill_curve(curve: FittedCurve, engine: SymbolicRegressionEngine | None = 
         Same name, argument and domain; shift 0 (the expression carries the curve's value at 0;
         :func:`distill_model` re-applies the gauge). ``meta`` holds the SR digest.
     """
-    return _distill(curve, engine, n=n, random_state=random_state, operators=operators)[0]
+    return distill_curve_front(curve, engine, n=n, random_state=random_state, operators=operators)[0]
 
 
-def _distill(curve: FittedCurve, engine, *, n: int, random_state: int, operators):
+def distill_curve_front(curve: FittedCurve, engine, *, n: int, random_state: int, operators):
     """(selected closed form, every front member as a full-curve sympy expression, simplest first)."""
     import sympy as sp
 
@@ -168,142 +159,12 @@ def _refit_with_jump(smooth_expr, k: float, z: np.ndarray, y: np.ndarray):
     """``smooth + muN tanh(k z)`` with all outer coefficients (muN too) refitted by least squares."""
     import sympy as sp
 
-    from ._engine import _eval, _split_terms
+    from ._expressions import eval_expression, split_terms
 
     zs = sp.Symbol("z")
     step = sp.tanh(sp.Float(k, 15) * zs)
-    terms = [b for c, b in _split_terms(sp.expand(smooth_expr)) if c != 0] + [step]
-    A = np.column_stack([_eval(b, [zs], z[:, None]) for b in terms])
+    terms = [b for c, b in split_terms(sp.expand(smooth_expr)) if c != 0] + [step]
+    A = np.column_stack([eval_expression(b, [zs], z[:, None]) for b in terms])
     coef, *_ = np.linalg.lstsq(A, y, rcond=None)
     expr = sp.Add(*[sp.Float(float(c), 15) * b for c, b in zip(coef, terms)])
     return expr, float(np.mean((A @ coef - y) ** 2))
-
-
-#: A distilled model may fit the training record this much worse (relative data loss) than the
-#: model it distils before a curve is replaced by a more accurate member of its front.
-DATA_LOSS_TOLERANCE = 0.05
-
-
-def _guard_data_loss(model, curves: dict, fronts: dict, traj) -> None:
-    """Never let post-SR make the model clearly worse on its training record.
-
-    The knee of a curve's front is chosen on the curve's samples alone; when a smooth stand-in of
-    a jump (a SINDy polynomial of Coulomb friction) has no simple closed form, the knee is a
-    straight line that doubles the data loss. Here the data loss (sticking samples left out, as
-    in training) of the model with the distilled curves is compared with the model's own; while
-    it exceeds ``1 + DATA_LOSS_TOLERANCE`` times that, each curve that alone breaks the bound is
-    moved up its front to the simplest member that keeps it, else to the source's own closed form
-    (basis/symbolic curves), else to the front member of least data loss. ``curves`` is updated
-    in place; the choice is recorded in the curve's ``meta["data_guard"]``.
-    """
-    import sympy as sp
-
-    from ..fitting._model import FittedModel
-
-    mask = ~sticking_mask(traj)
-    zs = sp.Symbol("z")
-
-    def loss(cs: dict) -> float:
-        # constants are not re-gauged here: the gauge only moves them between curves and b
-        m = FittedModel(model.template, model.method, cs, model.gain, model.offset, model.loss, model.info)
-        r = np.asarray(m.force_residual(traj))[mask]
-        return float(np.mean(r**2))
-
-    def closed(name: str, expr, how: str) -> SymbolicFittedCurve:
-        c = curves[name]
-        z = model.curves[name].grid(int(c.meta.get("n_grid", 1000)))
-        rmse = float(np.sqrt(np.mean((SymbolicFittedCurve(c.name, c.argument, c.domain, expr)(z)
-                                      - model.curves[name](z)) ** 2)))
-        meta = dict(c.meta)
-        meta.update({"expression": str(expr), "data_guard": how, "complexity": expression_complexity(expr),
-                     "distillation_rmse": rmse})
-        return SymbolicFittedCurve(c.name, c.argument, c.domain, expr, 0.0, meta)
-
-    base = loss(dict(model.curves))
-    bound = base * (1.0 + DATA_LOSS_TOLERANCE)
-    if not np.isfinite(base) or loss(curves) <= bound:
-        return
-    for name, source in model.curves.items():
-        trial = dict(model.curves)
-        trial[name] = curves[name]
-        if loss(trial) <= bound:
-            continue
-        chosen = str(curves[name].expression())
-        best, best_loss = None, math.inf
-        for expr in fronts.get(name, []):
-            trial[name] = closed(name, expr, "")
-            value = loss(trial)
-            if value <= bound:
-                best, best_loss = expr, value
-                break
-            if value < best_loss:
-                best, best_loss = expr, value
-        if best_loss <= bound:
-            curves[name] = closed(name, best, f"front member kept the data loss within "
-                                              f"{DATA_LOSS_TOLERANCE:.0%} (knee {chosen} did not)")
-            continue
-        own = source.expression()
-        if own is not None and not (own.free_symbols - {zs}):
-            curves[name] = closed(name, own, f"source curve kept: no front member kept the data loss within "
-                                             f"{DATA_LOSS_TOLERANCE:.0%} (knee {chosen})")
-        elif best is not None:
-            curves[name] = closed(name, best, f"front member of least data loss (knee {chosen})")
-
-
-def distill_model(model, *, sr_options: dict | None = None, random_state: int = 0, n: int = 1000, traj=None):
-    """Post-SR of every curve of a fitted model.
-
-    Parameters
-    ----------
-    model : FittedModel
-    sr_options : dict, optional
-        See :func:`charcurves.symbolic.make_engine` ("operators": "auto" picks per curve).
-    random_state : int
-        Seed; curve i uses ``random_state + 1000 i``.
-    n : int
-        Grid points per curve.
-    traj : Trajectory, optional
-        The training record: when given, the loss is recomputed with the closed forms (sticking
-        samples left out, as in training); otherwise ``loss`` keeps the pre-distillation value
-        and ``info["loss_recomputed"]`` is False.
-
-    Returns
-    -------
-    FittedModel
-        Same template, method, gain; all curves :class:`SymbolicFittedCurve` with the template's
-        gauge re-applied (the anchor curve is 0 at 0; a constant that no unpinned curve can carry
-        becomes the offset b). ``info`` keeps the old entries and adds ``post_sr`` (per curve:
-        expression, front, timing, criterion), ``loss_before_distillation`` and
-        ``post_sr_seconds``.
-    """
-    from ..fitting._model import FittedModel
-
-    t0 = time.perf_counter()
-    engine = make_engine(sr_options)
-    ops = operators_option(sr_options)
-    curves, fronts = {}, {}
-    for i, (name, c) in enumerate(model.curves.items()):
-        curves[name], fronts[name] = _distill(c, engine, n=n, random_state=int(random_state) + 1000 * i,
-                                              operators=ops)
-    if traj is not None and traj.has_derivatives:
-        _guard_data_loss(model, curves, fronts, traj)
-    order = tuple(model.template.curve_names)
-    raw0 = {k: float(c.raw(np.array([0.0]))[0]) for k, c in curves.items()}
-    pinned = {k: c.pinned_at_zero for k, c in curves.items()}
-    shifts, offset = apply_gauge(raw0, pinned, float(model.offset), model.template.gauge, order)
-    for k, c in curves.items():
-        c.shift = shifts[k]
-    info = dict(model.info)
-    info["loss_before_distillation"] = float(model.loss)
-    info["post_sr"] = {k: c.meta for k, c in curves.items()}
-    info["post_sr_seconds"] = time.perf_counter() - t0
-    loss = float(model.loss)
-    if traj is not None and traj.has_derivatives:
-        new = FittedModel(model.template, model.method, curves, model.gain, offset, loss, info)
-        mask = ~sticking_mask(traj)
-        r = new.force_residual(traj)[mask]
-        loss = float(np.mean(r**2))
-        info["loss_recomputed"] = True
-    else:
-        info["loss_recomputed"] = False
-    return FittedModel(model.template, model.method, curves, model.gain, offset, loss, info)

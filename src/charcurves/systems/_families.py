@@ -286,7 +286,7 @@ class TwoDOF:
 def corrupt_forces(record, snr_db: float, *, seed=None, reference: str = "std"):
     """Gaussian noise on every forcing column of a MultiTrajectory at ``snr_db`` (each relative
     to its own signal), from one seeded generator."""
-    from ..data._noise import _as_rng, add_noise
+    from ..data import add_noise, as_rng
 
-    rng = _as_rng(seed)
+    rng = as_rng(seed)
     return record.replace(forces={k: add_noise(v, snr_db, rng, reference) for k, v in record.forces.items()})

@@ -1,4 +1,4 @@
-"""General templates: equations linear in unknown univariate curves and unknown scalars.
+"""Template structures: equations linear in unknown univariate curves and unknown scalars.
 
 A template is a list of equations, each written as a residual that must vanish::
 
@@ -27,231 +27,25 @@ coordinates of phase space, as in appendix A), by evaluating them at random poin
 
 from __future__ import annotations
 
-import dataclasses
-import re
 from typing import Any
 
 import numpy as np
 
 from .._errors import ConfigError, DataError, IdentifiabilityError
+from ._parse import (CURVE, DERIV, FORCE, MAX_TEXT, SCALAR, STATE, ParsedEquation, display, parse_side, raw_arguments,
+                     show, sort_key, split_equation)
 
-__all__ = ["EquationTemplate", "parse_equation", "FAMILY_EQUATIONS", "FAMILY_ANCHORS", "record_columns"]
+__all__ = ["EquationTemplate", "FAMILY_EQUATIONS", "FAMILY_ANCHORS", "record_columns", "evaluate_signal"]
 
-#: The built-in families beyond "separable", written as equations (curve order = result order).
+#: The built-in families written as equations (curve order = result order).
 FAMILY_EQUATIONS = {
+    "separable": "x'' + f1(x') + f2(x) = F",
     "first-order": "f1(x) + f2(x)*x' = F",
     "position-damping": "x'' + f1(x)*x' + f2(x) = F",
     "two-dof": "x1'' + f1(x1') + f2(x1 - x2) = F1; x2'' + f3(x2') + f4(x2 - x1) = F2",
 }
-#: Curves anchored at 0 by default (appendix A: zero coupling force at equilibrium).
-FAMILY_ANCHORS = {"first-order": (), "position-damping": (), "two-dof": ("f2", "f4")}
-
-_FUNCS = ("sin", "cos", "tanh", "exp", "log", "sqrt", "sign", "Abs", "atan", "sinh", "cosh", "tan")
-_OPS = {"+", "-", "*", "/", "**", "(", ")", ","}
-_STATE = re.compile(r"^x\d*$")
-_DERIV = re.compile(r"^(x\d*)__d([12])$")
-_FORCE = re.compile(r"^F\d*$")
-_CURVE = re.compile(r"^f\d+$")
-_SCALAR = re.compile(r"^a\d+$")
-_PRIMES = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)('+)")
-_MAX_TEXT = 2000
-
-
-def _name_ok(name: str) -> bool:
-    return bool(name in _FUNCS or name in ("abs", "pi", "E", "t") or _STATE.match(name) or _DERIV.match(name)
-                or _FORCE.match(name) or _CURVE.match(name) or _SCALAR.match(name))
-
-
-def display(sym_name: str) -> str:
-    """Internal symbol name -> as written (``x1__d1`` -> ``x1'``)."""
-    m = _DERIV.match(sym_name)
-    return f"{m.group(1)}{chr(39) * int(m.group(2))}" if m else sym_name
-
-
-def _show(expr) -> str:
-    text = str(expr)
-    return re.sub(r"\b(x\d*)__d([12])\b", lambda m: m.group(1) + "'" * int(m.group(2)), text)
-
-
-def _parse_side(text: str, where: str):
-    import sympy as sp
-    from sympy.core.function import AppliedUndef
-    from sympy.parsing.sympy_parser import parse_expr, standard_transformations
-
-    from ..curves._fitted import first_disallowed_token
-
-    def primes(m):
-        name, marks = m.group(1), m.group(2)
-        if not _STATE.match(name):
-            raise ConfigError(f"{where}: {name}{marks} differentiates {name!r}, which is not a state; "
-                              "only states x, x1, x2, ... take primes (x', x'')")
-        if len(marks) > 2:
-            raise ConfigError(f"{where}: {name}{marks} is a derivative of order {len(marks)}; "
-                              "templates use at most x''")
-        return f"{name}__d{len(marks)}"
-
-    body = _PRIMES.sub(primes, text.strip()).replace("\n", " ")
-    bare = re.search(r"\b(f\d+)\b(?!\s*\()", body)
-    if bare:
-        raise ConfigError(f"{where}: {bare.group(1)} is a curve and must be applied to an argument, e.g. "
-                          f"{bare.group(1)}(x)")
-    if "'" in body:
-        raise ConfigError(f"{where}: a stray ' in {text.strip()!r}; write derivatives as x' and x''")
-    # power towers are refused below by _check_powers, with the template's tighter exponent bound
-    bad = first_disallowed_token(body, _name_ok, _OPS, cost_guard=False)
-    if bad == "":
-        raise ConfigError(f"{where}: cannot read {text.strip()!r}; write e.g. \"x'' + f1(x') + f2(x) = F\"")
-    if bad is not None:
-        raise ConfigError(
-            f"{where}: {display(bad)!r} is not allowed in {text.strip()!r}; use states x, x1, x2 (with ' and ''), "
-            "forcings F, F1, F2, time t, curves f1, f2, ..., scalars a1, a2, ..., numbers, + - * / ** and "
-            + ", ".join(_FUNCS)
-        )
-    names = set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", body))
-    local: dict[str, Any] = {n: getattr(sp, n) for n in _FUNCS}
-    local.update({"abs": sp.Abs, "pi": sp.pi, "E": sp.E})
-    for n in names:
-        if _CURVE.match(n):
-            local[n] = sp.Function(n)
-        elif n not in local:
-            local[n] = sp.Symbol(n, real=True)
-    gdict = {"Integer": sp.Integer, "Float": sp.Float, "Rational": sp.Rational, "Symbol": sp.Symbol}
-    try:
-        # unevaluated first: a power tower such as 9**9**9 must be refused before sympy computes it
-        _check_powers(parse_expr(body, local_dict=local,
-                                 global_dict={**gdict, "Add": sp.Add, "Mul": sp.Mul, "Pow": sp.Pow},
-                                 transformations=standard_transformations, evaluate=False), where)
-        expr = parse_expr(body, local_dict=local, global_dict=dict(gdict), transformations=standard_transformations,
-                          evaluate=True)
-    except ConfigError:
-        raise
-    except Exception as exc:  # sympy raises many types for bad syntax; none may escape as a traceback
-        raise ConfigError(f"{where}: cannot parse {text.strip()!r} ({type(exc).__name__}); "
-                          "write e.g. \"x'' + a1*x' + f1(x) = F\"") from None
-    if not isinstance(expr, sp.Expr):
-        raise ConfigError(f"{where}: {text.strip()!r} is not an expression")
-    if expr.has(sp.zoo, sp.oo, sp.nan, sp.I) or any(
-            not (n.is_real and n.is_finite and abs(float(n)) < 1e300) for n in expr.atoms(sp.Number)):
-        raise ConfigError(f"{where}: {text.strip()!r} contains a value that is not a finite real number "
-                          "(division by zero, log(0), sqrt of a negative number?); write real, finite terms")
-    for n in names:
-        if _CURVE.match(n) and not any(isinstance(a, AppliedUndef) and a.func.__name__ == n
-                                       for a in expr.atoms(AppliedUndef)):
-            raise ConfigError(f"{where}: {n} cancels out (or is multiplied by 0); remove it or fix its terms")
-    return expr
-
-
-#: Largest exponent a template may contain (keeps expansion of the equation small)
-MAX_EXPONENT = 12
-
-
-def _check_powers(expr, where: str) -> None:
-    """Refuse exponents that are not numbers of modest size (no power towers, no x**x)."""
-    import sympy as sp
-
-    if not isinstance(expr, sp.Basic):
-        return
-    for arg in expr.args:
-        _check_powers(arg, where)
-    if isinstance(expr, sp.Pow):
-        e = expr.exp
-        if e.free_symbols:
-            raise ConfigError(f"{where}: the exponent {_show(e)} depends on the data; exponents must be numbers")
-        try:
-            val = float(e.evalf(15))
-        except (TypeError, ValueError, OverflowError):
-            val = float("inf")
-        if not np.isfinite(val) or abs(val) > MAX_EXPONENT:
-            raise ConfigError(f"{where}: the exponent {_show(e)} is too large; exponents are numbers up to "
-                              f"{MAX_EXPONENT} in size")
-
-
-@dataclasses.dataclass(frozen=True)
-class _Equation:
-    known: Any  # sympy expression of data symbols
-    input: Any  # sympy expression containing forcing symbols (enters as -g * input)
-    curves: dict  # curve name -> coefficient m (sympy)
-    scalars: dict  # scalar name -> signal s (sympy)
-
-
-def _split_equation(lhs, rhs, where: str, arguments: dict) -> _Equation:
-    import sympy as sp
-    from sympy.core.function import AppliedUndef
-
-    resid = sp.expand(lhs - rhs)
-    known, inp = sp.Integer(0), sp.Integer(0)
-    curves: dict[str, Any] = {}
-    scalars: dict[str, Any] = {}
-    for term in sp.Add.make_args(resid):
-        apps = [a for a in term.atoms(AppliedUndef)]
-        scal = sorted((s for s in term.free_symbols if _SCALAR.match(s.name)), key=lambda s: s.name)
-        for app in apps:
-            for arg in app.args:
-                if arg.atoms(AppliedUndef) or any(_SCALAR.match(s.name) for s in arg.free_symbols):
-                    raise ConfigError(f"{where}: the argument of {app.func.__name__} in {_show(term)} contains "
-                                      "unknowns; arguments are data signals such as x, x', x1 - x2")
-        if apps and scal:
-            raise IdentifiabilityError(
-                f"{where}: the term {_show(term)} multiplies a curve by the scalar {scal[0]}, which the curve can "
-                f"absorb (any scale moves between them); drop {scal[0]}"
-            )
-        if len(apps) > 1:
-            raise ConfigError(f"{where}: the term {_show(term)} is a product of curves; templates must be linear in "
-                              "the unknown curves (each term: coefficient * f(argument))")
-        if len(scal) > 1:
-            raise ConfigError(f"{where}: the term {_show(term)} is a product of scalars; write one scalar per term")
-        if apps:
-            app = apps[0]
-            name = app.func.__name__
-            if len(app.args) != 1:
-                raise ConfigError(f"{where}: {name} takes {len(app.args)} arguments in {_show(term)}; "
-                                  "curves are univariate, e.g. f1(x1 - x2)")
-            arg = app.args[0]
-            if arg.atoms(AppliedUndef) or any(_SCALAR.match(s.name) for s in arg.free_symbols):
-                raise ConfigError(f"{where}: the argument of {name} in {_show(term)} contains unknowns; "
-                                  "arguments are data signals such as x, x', x1 - x2")
-            if not arg.free_symbols:
-                raise ConfigError(f"{where}: {name}({_show(arg)}) has a constant argument; give it a data signal")
-            coef = sp.simplify(term / app)
-            if coef.has(app) or coef.atoms(AppliedUndef):
-                raise ConfigError(f"{where}: {_show(term)} is not linear in {name}; templates must be linear in "
-                                  "the unknown curves (each term: coefficient * f(argument))")
-            if name in arguments and sp.simplify(arguments[name] - arg) != 0:
-                raise ConfigError(f"{name} is used with two arguments ({_show(arguments[name])} and {_show(arg)}); "
-                                  "a curve has one argument: name the other one differently")
-            arguments[name] = arg
-            curves[name] = curves.get(name, 0) + coef
-        elif scal:
-            s = scal[0]
-            sig = sp.simplify(term / s)
-            if sig.has(s):
-                raise ConfigError(f"{where}: {_show(term)} is not linear in the scalar {s}")
-            scalars[s.name] = scalars.get(s.name, 0) + sig
-        elif any(_FORCE.match(s.name) for s in term.free_symbols):
-            inp = inp - term
-        else:
-            known = known + term
-    curves = {k: v for k, v in curves.items() if sp.simplify(v) != 0}
-    scalars = {k: v for k, v in scalars.items() if sp.simplify(v) != 0}
-    return _Equation(known, inp, curves, scalars)
-
-
-def _raw_arguments(text: str) -> dict[str, str]:
-    """Each curve's argument as first written (``x2 - x1``, not sympy's ``-x1 + x2``)."""
-    out: dict[str, str] = {}
-    for m in re.finditer(r"\b(f\d+)\s*\(", text):
-        depth, start = 1, m.end()
-        for k in range(start, len(text)):
-            depth += {"(": 1, ")": -1}.get(text[k], 0)
-            if depth == 0:
-                out.setdefault(m.group(1), " ".join(text[start:k].split()))
-                break
-    return out
-
-
-def _sort_key(name: str):
-    return (name[0], int(name[1:]))
-
+#: Curves anchored at 0 by default (the paper's f2(0) = 0; appendix A: zero coupling force at equilibrium).
+FAMILY_ANCHORS = {"separable": ("f2",), "first-order": (), "position-damping": (), "two-dof": ("f2", "f4")}
 
 class EquationTemplate:
     """A template parsed from equations; see the module docstring for the model it fits.
@@ -263,7 +57,7 @@ class EquationTemplate:
     family : str
         Family name reported in results ("custom" for user-written templates).
     free_gain, gain, gain_on
-        As in :class:`~charcurves.templates.SeparableTemplate` (one gain for every input).
+        As in :class:`~charcurves.templates.Template` (one gain for every input).
     gauge : str or sequence of str, optional
         Curves anchored at 0 to fix the gauge freedoms ("f2" or "f2,f4"); by default one curve
         per freedom is chosen (the highest-numbered curve that can carry it).
@@ -277,16 +71,14 @@ class EquationTemplate:
     ['f2(0) = 0']
     """
 
-    is_general = True
-
     def __init__(self, equation: str, *, family: str = "custom", free_gain: bool = False, gain: float = 1.0,
                  gauge=None, gain_on: str = "force"):
         import sympy as sp
 
         if not isinstance(equation, str) or not equation.strip():
             raise ConfigError("the equation is empty; write e.g. \"x'' + f1(x') + f2(x) = F\"")
-        if len(equation) > _MAX_TEXT:
-            raise ConfigError(f"the equation text is {len(equation)} characters long; keep it under {_MAX_TEXT}")
+        if len(equation) > MAX_TEXT:
+            raise ConfigError(f"the equation text is {len(equation)} characters long; keep it under {MAX_TEXT}")
         if gain_on not in ("force", "acceleration"):
             raise ConfigError(f"gain_on must be 'force' or 'acceleration', got {gain_on!r}")
         try:
@@ -304,7 +96,7 @@ class EquationTemplate:
         if not parts:
             raise ConfigError("the equation is empty; write e.g. \"x'' + f1(x') + f2(x) = F\"")
         arguments: dict[str, Any] = {}
-        self.equations: list[_Equation] = []
+        self.equations: list[ParsedEquation] = []
         for k, part in enumerate(parts, 1):
             where = f"equation {k}" if len(parts) > 1 else "equation"
             if part.count("=") != 1:
@@ -312,7 +104,7 @@ class EquationTemplate:
             lhs_t, rhs_t = part.split("=")
             if not lhs_t.strip() or not rhs_t.strip():
                 raise ConfigError(f"{where} {part.strip()!r} has an empty side; write e.g. \"x'' + f1(x) = F\"")
-            eq = _split_equation(_parse_side(lhs_t, where), _parse_side(rhs_t, where), where, arguments)
+            eq = split_equation(parse_side(lhs_t, where), parse_side(rhs_t, where), where, arguments)
             if eq.known == 0 and eq.input == 0:
                 raise IdentifiabilityError(
                     f"{where} {part.strip()!r} has no known term (such as x'' or F): all curves = 0 solves it, so "
@@ -321,14 +113,14 @@ class EquationTemplate:
             if not eq.curves and not eq.scalars:
                 raise ConfigError(f"{where} {part.strip()!r} has no unknown curve or scalar; drop it or add one")
             self.equations.append(eq)
-        names = sorted({n for eq in self.equations for n in eq.curves}, key=_sort_key)
+        names = sorted({n for eq in self.equations for n in eq.curves}, key=sort_key)
         if not names:
             raise ConfigError("the template has no unknown curve; write curves as f1(...), f2(...)")
         self.curve_names = tuple(names)
-        self.scalar_names = tuple(sorted({n for eq in self.equations for n in eq.scalars}, key=_sort_key))
+        self.scalar_names = tuple(sorted({n for eq in self.equations for n in eq.scalars}, key=sort_key))
         self.argument_exprs = {n: arguments[n] for n in names}
-        raw = _raw_arguments(self.text)
-        self.arguments = {n: raw.get(n) or _show(arguments[n]) for n in names}
+        raw = raw_arguments(self.text)
+        self.arguments = {n: raw.get(n) or show(arguments[n]) for n in names}
         #: data column each curve reads (its argument as written)
         self.variables = dict(self.arguments)
         syms = set()
@@ -338,19 +130,34 @@ class EquationTemplate:
         for a in arguments.values():
             syms |= {s.name for s in a.free_symbols}
         self.symbols = tuple(sorted(syms))
-        self.states = tuple(sorted({(_DERIV.match(s).group(1) if _DERIV.match(s) else s)
-                                    for s in syms if _STATE.match(s) or _DERIV.match(s)}))
-        self.forces = tuple(sorted(s for s in syms if _FORCE.match(s)))
-        self.order = max([int(_DERIV.match(s).group(2)) for s in syms if _DERIV.match(s)] or [0])
+        self.states = tuple(sorted({(DERIV.match(s).group(1) if DERIV.match(s) else s)
+                                    for s in syms if STATE.match(s) or DERIV.match(s)}))
+        self.forces = tuple(sorted(s for s in syms if FORCE.match(s)))
+        self.order = max([int(DERIV.match(s).group(2)) for s in syms if DERIV.match(s)] or [0])
         self._rng_points = None
         self._check_pairs()
         self.anchors = self._choose_anchors(gauge, {n: False for n in names})
-        self.gauge = _Gauge(self)
+        #: the gauge as asked for (None: the family's default anchors); ``anchors`` is what it resolved to
+        self.gauge = gauge
 
     # ------------------------------------------------------------------ description
     @property
+    def is_general(self) -> bool:
+        """False for the paper's separable family (which has its own closed-form output and simulator)."""
+        return self.family != "separable"
+
+    @property
+    def velocity_curves(self) -> tuple[str, ...]:
+        """Curves whose argument is a velocity (x', x1', ...): where dry friction puts a jump at 0."""
+        return tuple(n for n in self.curve_names
+                     if DERIV.match(str(self.argument_exprs[n])) and str(self.argument_exprs[n]).endswith("__d1"))
+
+    @property
     def equation(self) -> str:
         text = self.text
+        if self.family == "separable":  # the paper's notation
+            g = "g" if self.free_gain else ("" if self.gain == 1 else f"{self.gain:g}")
+            return f"x'' + f1(x') + f2(x) = {g + '*F' if g else 'F'}"
         if self.free_gain:
             text += "  (input gain g learned)"
         elif self.gain != 1:
@@ -366,6 +173,9 @@ class EquationTemplate:
         return self.states != ("x",) or any(f != "F" for f in self.forces)
 
     def to_dict(self) -> dict:
+        if self.family == "separable":  # model files of every release keep this form
+            return {"family": "separable", "free_gain": self.free_gain, "gain": self.gain,
+                    "gauge": self.anchors[0] if self.anchors else "f2", "gain_on": self.gain_on}
         return {"family": self.family, "equation": self.text, "free_gain": self.free_gain, "gain": self.gain,
                 "gauge": list(self.anchors), "gain_on": self.gain_on}
 
@@ -382,7 +192,7 @@ class EquationTemplate:
 
     def _eval(self, expr, pts=None) -> np.ndarray:
         pts = self._points() if pts is None else pts
-        return _evaluate(expr, pts, len(next(iter(pts.values()))) if pts else 12)
+        return evaluate_signal(expr, pts, len(next(iter(pts.values()))) if pts else 12)
 
     def _function_of(self, r, u) -> bool:
         """Whether ``r`` is (locally) a function of ``u``: their gradients are parallel everywhere."""
@@ -440,10 +250,10 @@ class EquationTemplate:
                 r = self._trade_ratio(sc, coef[n], self.argument_exprs[n])
                 if r is None or not sp.sympify(r).free_symbols:
                     continue  # a constant is traded through the curve's constant: see check_identifiable
-                shown = _show(next(iter(sc.values())))
+                shown = show(next(iter(sc.values())))
                 raise IdentifiabilityError(
                     f"the scalar term {s}*{shown} can be absorbed by {n}({self.arguments[n]}) (it adds "
-                    f"{_show(r)} * {s} to {n}), so {s} is not identifiable; drop {s} or the curve {n}"
+                    f"{show(r)} * {s} to {n}), so {s} is not identifiable; drop {s} or the curve {n}"
                 )
 
     # ------------------------------------------------------------------ constants and gauge
@@ -501,6 +311,8 @@ class EquationTemplate:
                 break
         B = N @ np.linalg.inv(N[pivots, :])
         B[np.abs(B) < 1e-10] = 0.0
+        near = np.abs(B - np.round(B)) < 1e-10  # trade ratios are usually integers (+-1): make them exact
+        B[near] = np.round(B[near])
         return slots, [(slots[p], B[:, k]) for k, p in enumerate(pivots)]
 
     def _priority(self, pinned: dict[str, bool], anchors, offsets: list[int]):
@@ -532,17 +344,23 @@ class EquationTemplate:
                               f"this template ({hint})")
         return anchors
 
+    def anchored_offsets(self, pinned: dict[str, bool]) -> list[int]:
+        """Equations that get a free constant once the anchors are imposed: an anchor is a condition
+        (the paper's f2(0) = 0; zero coupling force at equilibrium), so when it leaves no other curve
+        to carry an equation's constant, the constant becomes the equation's free constant b."""
+        return self.offsets_needed({**pinned, **{a: True for a in self.anchors}})
+
     def gauge_conditions(self, pinned: dict[str, bool] | None = None) -> list[str]:
         """The anchoring conditions that fix the gauge, e.g. ``["f2(0) = 0"]``."""
         pinned = pinned or {}
-        offsets = self.offsets_needed(pinned)
+        offsets = self.anchored_offsets(pinned)
         _, vecs = self._freedoms(pinned, self._priority(pinned, self.anchors, offsets))
         return [f"{name}(0) = 0" for (kind, name), _ in vecs if kind == "curve"]
 
     def gauge_freedoms(self, pinned: dict[str, bool] | None = None) -> list[str]:
         """Human-readable gauge freedoms: which curves trade a constant, and the anchor that fixes it."""
         pinned = pinned or {}
-        offsets = self.offsets_needed(pinned)
+        offsets = self.anchored_offsets(pinned)
         slots, vecs = self._freedoms(pinned, self._priority(pinned, self.anchors, offsets))
         out = []
         for (kind, name), v in vecs:
@@ -571,7 +389,7 @@ class EquationTemplate:
 
     def normalise(self, values_at_zero: dict[str, float], pinned: dict[str, bool], offsets: dict[int, float]):
         """Shifts per curve (and new offsets) that satisfy the anchors; see :meth:`_freedoms`."""
-        offs = self.offsets_needed(pinned)
+        offs = self.anchored_offsets(pinned)
         slots, vecs = self._freedoms(pinned, self._priority(pinned, self.anchors, offs))
         value = {}
         for kind, name in slots:
@@ -604,7 +422,7 @@ class EquationTemplate:
         """Stacked arrays of the equations on a record (rows: equation-major)."""
         cols = self.columns_of(record)
         n = len(cols["t"])
-        ev = lambda e: _evaluate(e, cols, n)  # noqa: E731
+        ev = lambda e: evaluate_signal(e, cols, n)  # noqa: E731
         y = np.concatenate([ev(eq.known) for eq in self.equations])
         F = np.concatenate([ev(eq.input) for eq in self.equations])
         args = {name: ev(self.argument_exprs[name]) for name in self.curve_names}
@@ -620,19 +438,19 @@ class EquationTemplate:
     def arguments_of(self, record) -> dict[str, np.ndarray]:
         cols = self.columns_of(record)
         n = len(cols["t"])
-        return {name: _evaluate(self.argument_exprs[name], cols, n) for name in self.curve_names}
+        return {name: evaluate_signal(self.argument_exprs[name], cols, n) for name in self.curve_names}
 
     def check_excitation(self, record) -> None:
         for name, z in self.arguments_of(record).items():
             if np.ptp(z) <= 1e-12 * max(1.0, float(np.max(np.abs(z)))):
                 extra = " (the masses move together)" if "-" in self.arguments[name] else ""
-                raise DataError(
-                    f"the argument {self.arguments[name]} of {name} is constant over the record{extra}, so {name} "
-                    "cannot be identified; give a record in which it varies (excite the system)"
-                )
+                fix = ("give a record in which the system moves (excite it)" if self.family == "separable"
+                       else "give a record in which it varies (excite the system)")
+                raise DataError(f"the argument {self.arguments[name]} of {name} is constant over the record{extra}, so "
+                                f"{name} cannot be identified; {fix}")
 
 
-def _evaluate(expr, cols: dict[str, np.ndarray], n: int) -> np.ndarray:
+def evaluate_signal(expr, cols: dict[str, np.ndarray], n: int) -> np.ndarray:
     import sympy as sp
 
     expr = sp.sympify(expr)
@@ -644,23 +462,9 @@ def _evaluate(expr, cols: dict[str, np.ndarray], n: int) -> np.ndarray:
         return np.broadcast_to(np.asarray(f(*[cols[s.name] for s in syms]), dtype=float), (n,)).copy()
 
 
-class _Gauge:
-    """The anchors of an EquationTemplate in the form the shared gauge helper accepts."""
-
-    def __init__(self, template: EquationTemplate):
-        self.template = template
-
-    def __str__(self) -> str:
-        return ",".join(self.template.anchors)
-
-    def apply(self, raw_at_zero, pinned, bias, order):
-        shifts, offs = self.template.normalise(raw_at_zero, pinned, {0: float(bias)})
-        return shifts, float(offs.get(0, 0.0)) if self.template.n_equations == 1 else 0.0
-
-
 def record_columns(record, template: EquationTemplate) -> dict[str, np.ndarray]:
     """The data symbols a template reads, from a Trajectory or a MultiTrajectory."""
-    from ..data._trajectory import MultiTrajectory, Trajectory
+    from ..data import MultiTrajectory, Trajectory
 
     need = set(template.symbols)
     if isinstance(record, Trajectory):
@@ -689,15 +493,3 @@ def record_columns(record, template: EquationTemplate) -> dict[str, np.ndarray]:
         raise DataError(f"the template needs {shown}, which the record lacks; estimate derivatives first or give "
                         "those columns")
     return cols
-
-
-def check_equation_option(equation) -> None:
-    """Refuse an empty ``equation`` option: it must not fall back silently to the separable family."""
-    if equation is not None and not str(equation).strip():
-        raise ConfigError("the equation is empty; write a template such as \"x'' + f1(x') + f2(x) = F\" "
-                          "or leave out --equation (equation=None) for the separable family")
-
-
-def parse_equation(text: str, **kwargs) -> EquationTemplate:
-    """Parse a user-written template (see :class:`EquationTemplate`); never evaluates the text as code."""
-    return EquationTemplate(text, **kwargs)

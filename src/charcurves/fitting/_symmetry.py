@@ -144,8 +144,8 @@ def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, th
     >>> tests["f1"]["proposal"], tests["f2"]["proposal"]  # doctest: +SKIP
     ('odd', 'odd')
     """
-    from ..fitting._estimator import CharacteristicCurves
-    from ._bands import fit_ensemble
+    from ._ensemble import fit_ensemble
+    from ._estimator import CharacteristicCurves
 
     if estimator is None:
         estimator = CharacteristicCurves(**estimator_params)
@@ -163,7 +163,7 @@ def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, th
 
 def _method_for(method: str, any_parity: bool) -> str:
     """The method that carries the detected priors (or none) closest to the one asked for."""
-    from ..fitting._estimator import METHODS
+    from ._methods import METHODS
 
     spec = METHODS[method]
     if spec.get("allows_symmetry"):
@@ -187,16 +187,18 @@ def fit_many_auto(estimator, trajectories, seeds=None):
     A curve gets a parity only when every record proposes it. The decision and its statistics
     are stored in each model's ``info["symmetry_auto"]`` (and so in result.json).
     """
-    from ..fitting._estimator import METHODS, CharacteristicCurves
+    from ._estimator import CharacteristicCurves
+    from ._methods import METHODS
 
-    if estimator.method not in METHODS:
-        raise ConfigError(f"unknown method {estimator.method!r}; choose one of {', '.join(METHODS)}")
-    spec = METHODS[estimator.method]
+    if estimator.method_name() not in METHODS:
+        raise ConfigError(f"symmetry='auto' works with the paper's method presets (method=...); for a composed "
+                          f"template set each curve's symmetry, got method {estimator.method_name()!r}")
+    spec = METHODS[estimator.method_name()]
     takes_prior = spec["symmetry"] or spec.get("allows_symmetry") or \
-        f"{estimator.method.partition('+')[0]}+sym" in METHODS
+        f"{estimator.method_name().partition('+')[0]}+sym" in METHODS
     if not takes_prior:
         raise ConfigError(f"--sym auto needs a method that takes a symmetry prior (nn-cc, nn-cc+sym, poly-cc, "
-                          f"sindy-cc...), not {estimator.method!r}")
+                          f"sindy-cc...), not {estimator.method_name()!r}")
     # poly-cc fits test poly-cc curves (fast); every other method tests unconstrained NN-CC curves
     detector = "poly-cc" if spec["representation"] == "poly" else "nn-cc"
     tests = [detect_symmetry(tr, estimator=estimator, random_state=int(estimator.random_state), method=detector)
@@ -206,7 +208,7 @@ def fit_many_auto(estimator, trajectories, seeds=None):
     for name in names:
         proposals = {t[name]["proposal"] for t in tests}
         applied[name] = proposals.pop() if len(proposals) == 1 else "none"
-    method = _method_for(estimator.method, any(v != "none" for v in applied.values()))
+    method = _method_for(estimator.method_name(), any(v != "none" for v in applied.values()))
     params = estimator.get_params()
     params.update(method=method, symmetry=dict(applied))
     models = CharacteristicCurves(**params).fit_many(trajectories, seeds=seeds)
@@ -214,7 +216,7 @@ def fit_many_auto(estimator, trajectories, seeds=None):
         "mode": "auto",
         "applied": applied,
         "method": method,
-        "requested_method": estimator.method,
+        "requested_method": estimator.method_name(),
         "detection": {"method": detector, "members": AUTO_MEMBERS,
                       "kind": "bootstrap (training seeds where an equation has no forcing column of its own)",
                       "threshold": PARITY_THRESHOLD, "approximation_tolerance": APPROX_TOL},

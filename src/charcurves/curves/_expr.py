@@ -1,0 +1,149 @@
+"""Safe parsing of closed-form expressions read from users, files and SR engines.
+
+sympy's parser evaluates Python code, so no text reaches it before :func:`first_disallowed_token`
+has checked every token against an allow-list, and :func:`expression_cost_problem` has refused
+texts whose exact evaluation could hang (``9**9**9``). Both checks only tokenize/parse the text
+with the standard library; nothing is executed.
+"""
+
+from __future__ import annotations
+
+__all__ = ["ALLOWED_FUNCS", "first_disallowed_token", "expression_cost_problem", "parse_basis_function"]
+
+ALLOWED_FUNCS = ("sin", "cos", "tanh", "exp", "log", "sqrt", "sign", "Abs", "atan", "sinh", "cosh", "tan")
+
+
+_ALLOWED_NAMES = set(ALLOWED_FUNCS) | {"z", "abs", "pi", "E"}
+_ALLOWED_OPS = {"+", "-", "*", "/", "**", "(", ")", ","}
+
+
+def first_disallowed_token(text: str, name_ok, ops, *, cost_guard: bool = True) -> str | None:
+    """The first token of ``text`` that is not a number, an allowed name (``name_ok(name)``) or an
+    operator in ``ops``; "" when the text cannot be tokenized; None when every token is allowed.
+
+    This is the safety check run before sympy parses text from users, files or engines (sympy's
+    parser evaluates Python code, so nothing else may reach it). With ``cost_guard`` (the default)
+    a text made only of allowed tokens is also refused with a ConfigError when sympy's exact
+    arithmetic on it could hang (``9**9**9``; see ``expression_cost_problem``).
+    """
+    import io
+    import tokenize
+
+    try:
+        tokens = list(tokenize.generate_tokens(io.StringIO(text).readline))
+    except (tokenize.TokenError, IndentationError, SyntaxError):
+        return ""
+    for tok in tokens:
+        if tok.type in (tokenize.NEWLINE, tokenize.NL, tokenize.ENDMARKER, tokenize.NUMBER):
+            continue
+        if tok.type == tokenize.NAME and name_ok(tok.string):
+            continue
+        if tok.type == tokenize.OP and tok.string in ops:
+            continue
+        return tok.string
+    if cost_guard:
+        from .._errors import ConfigError
+
+        problem = expression_cost_problem(text)
+        if problem:
+            raise ConfigError(f"{text.strip()[:60]!r} {problem}; write a plain closed form with small exponents "
+                              "such as 'z**3' or 'tanh(50*z)'")
+    return None
+
+
+def _check_tokens(text: str) -> None:
+    """Allow only numbers, the symbol z, known function names and arithmetic: nothing is executed."""
+    from .._errors import ConfigError
+
+    bad = first_disallowed_token(text, _ALLOWED_NAMES.__contains__, _ALLOWED_OPS)
+    if bad == "":
+        raise ConfigError(f"cannot parse {text!r}; write an expression of z such as 'z**3'")
+    if bad is not None:
+        raise ConfigError(
+            f"{text!r} is not a plain expression of z ({bad!r} is not allowed); use z, numbers, "
+            f"+ - * / ** and {', '.join(ALLOWED_FUNCS)}"
+        )
+
+
+def parse_basis_function(text: str):
+    """Parse a closed form in ``z`` safely: the text is checked token by token before sympy sees it."""
+    import sympy as sp
+    from sympy.parsing.sympy_parser import parse_expr, standard_transformations
+
+    from .._errors import ConfigError
+
+    if not isinstance(text, str) or not text.strip():
+        raise ConfigError(f"empty basis function {text!r}; write e.g. 'z**3' or 'tanh(50*z)'")
+    _check_tokens(text)
+    z = sp.Symbol("z")
+    local = {"z": z, **{name: getattr(sp, name) for name in ALLOWED_FUNCS}, "abs": sp.Abs, "pi": sp.pi, "E": sp.E}
+    try:
+        expr = parse_expr(text, local_dict=local, global_dict={"Integer": sp.Integer, "Float": sp.Float,
+                                                                "Rational": sp.Rational, "Symbol": sp.Symbol},
+                          transformations=standard_transformations, evaluate=True)
+    except Exception as exc:  # sympy raises many types for bad syntax
+        raise ConfigError(f"cannot parse basis function {text!r} ({type(exc).__name__}); "
+                          "write an expression of z such as 'z**3'") from None
+    if not isinstance(expr, sp.Expr):
+        raise ConfigError(f"basis function {text!r} is not an expression of z")
+    extra = expr.free_symbols - {z}
+    if extra:
+        raise ConfigError(
+            f"basis function {text!r} uses {sorted(map(str, extra))}; write it in the curve's argument z only"
+        )
+    return expr
+
+
+
+#: bounds that keep sympy's exact arithmetic cheap on expressions read from files
+_MAX_EXPONENT_LITERAL = 100
+_MAX_EXPONENT_LITERALS = 2
+_MAX_POWER_GROWTH = 1e5  # product of the exponents of powers nested in one another's bases
+_MAX_LITERAL_DIGITS = 30
+_MAX_EXPRESSION_CHARS = 2000
+
+
+def expression_cost_problem(text: str) -> str | None:
+    """Why parsing ``text`` could hang (e.g. ``9**9**9``, which sympy evaluates exactly), or None.
+
+    The text is only parsed by Python's ``ast`` (nothing is evaluated): powers may not nest
+    in their exponent, which may hold at most two numbers of magnitude <= 100; powers nested in
+    bases may multiply their exponents up to 1e5; numbers have at most 30 digits. Fitted curves
+    stay far inside these bounds.
+    """
+    import ast
+
+    if len(text) > _MAX_EXPRESSION_CHARS:
+        return f"is longer than {_MAX_EXPRESSION_CHARS} characters"
+    try:
+        tree = ast.parse(text.replace("^", "**"), mode="eval")
+    except (SyntaxError, ValueError, RecursionError, MemoryError):
+        return None  # not Python syntax: the token check of the curve parser refuses it with its own message
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, (int, float, complex)):
+            digits = sum(ch.isdigit() for ch in repr(node.value))
+            if digits > _MAX_LITERAL_DIGITS:
+                return f"holds a number with more than {_MAX_LITERAL_DIGITS} digits"
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
+            inner = list(ast.walk(node.right))
+            if any(isinstance(n, ast.BinOp) and isinstance(n.op, ast.Pow) for n in inner):
+                return "nests a power in an exponent (exact evaluation could take forever)"
+            numbers = [n.value for n in inner if isinstance(n, ast.Constant) and isinstance(n.value, (int, float))]
+            if len(numbers) > _MAX_EXPONENT_LITERALS or any(abs(v) > _MAX_EXPONENT_LITERAL for v in numbers):
+                return "raises to an exponent too large to evaluate exactly"
+    if _power_growth(tree.body) > _MAX_POWER_GROWTH:
+        return "nests powers whose exponents multiply beyond what can be evaluated exactly"
+    return None
+
+
+def _power_growth(node) -> float:
+    """Largest product of exponent sizes along a chain of powers nested in bases, e.g. ((a**3)**4) -> 12."""
+    import ast
+
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
+        size = 1.0
+        for n in ast.walk(node.right):
+            if isinstance(n, ast.Constant) and isinstance(n.value, (int, float)):
+                size *= max(1.0, abs(float(n.value)))
+        return size * _power_growth(node.left)
+    return max([_power_growth(child) for child in ast.iter_child_nodes(node)], default=1.0)

@@ -1,0 +1,178 @@
+"""Fitted curves opened up for further training (output error, refinement of closed forms).
+
+:func:`trainable` turns any fitted curve into a :class:`CurveRefit`: a parametrisation (the
+protocol of :class:`~charcurves.curves.LinearParametrisation`), its current parameters (one row
+per ensemble member), the argument map and output scale, and a function that rebuilds the fitted
+curve from new parameters. For closed forms (post-SR, SR-CC) every numeric coefficient is a
+parameter: one per additive term (also an implicit 1 or an integer, as in ``z**3 - z``) and every
+Float inside a term (``tanh(50.0*z)``); the additive constant (it trades with the equation's free
+constant) and exponents stay fixed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+
+import numpy as np
+
+from .._errors import ConfigError
+
+__all__ = ["CurveRefit", "trainable", "SymbolicParametrisation"]
+
+
+@dataclasses.dataclass
+class CurveRefit:
+    """A fitted curve as ``shift + out_scale * param.evaluate(theta, (z - center) / half_width)``."""
+
+    param: object
+    theta: np.ndarray  # (members, n_params)
+    center: float
+    half_width: float
+    out_scale: float
+    shift: float
+    rebuild: Callable  # theta (members, n_params) -> FittedCurve (same name, argument, domain, shift)
+    labels: list
+
+
+def trainable(curve) -> CurveRefit:
+    """The :class:`CurveRefit` of a fitted curve (ConfigError for kinds that cannot be trained)."""
+    from ._base import LinearParametrisation
+    from ._fitted import BasisFittedCurve, LinearFittedCurve, NeuralFittedCurve, SymbolicFittedCurve
+    from ._specs import Basis
+
+    if isinstance(curve, NeuralFittedCurve):
+        def rebuild(theta):
+            return NeuralFittedCurve(curve.name, curve.argument, curve.domain, curve.spec, np.asarray(theta),
+                                     curve.in_scale, curve.out_scale, curve.shift)
+
+        labels = [f"{curve.name}:w{i}" for i in range(curve.spec.n_params)]
+        return CurveRefit(curve.spec, np.array(curve.theta, dtype=float), 0.0, curve.in_scale, curve.out_scale,
+                          curve.shift, rebuild, labels)
+    if isinstance(curve, BasisFittedCurve):
+        param = LinearParametrisation(Basis(list(curve.basis)))
+
+        def rebuild(theta):
+            return BasisFittedCurve(curve.name, curve.argument, curve.domain, curve.basis,
+                                    np.asarray(theta, dtype=float).mean(axis=0), curve.shift)
+
+        return CurveRefit(param, curve.coefficients[None, :].copy(), 0.0, 1.0, 1.0, curve.shift, rebuild,
+                          [f"{curve.name}:{b}" for b in curve.basis])
+    if isinstance(curve, LinearFittedCurve):
+        param = LinearParametrisation(curve.representation)
+
+        def rebuild(theta):
+            return LinearFittedCurve(curve.name, curve.argument, curve.domain, curve.representation,
+                                     np.asarray(theta, dtype=float).mean(axis=0), curve.center, curve.half_width,
+                                     curve.constant, curve.shift)
+
+        return CurveRefit(param, curve.coefficients[None, :].copy(), curve.center, curve.half_width, 1.0,
+                          curve.shift + curve.constant, rebuild,
+                          [f"{curve.name}:{n}" for n in curve.representation.feature_names()])
+    if isinstance(curve, SymbolicFittedCurve):
+        param = SymbolicParametrisation(curve._expr)
+
+        def rebuild(theta):
+            from ._fitted import SymbolicFittedCurve as S
+
+            return S(curve.name, curve.argument, curve.domain, param.expression(np.asarray(theta).mean(axis=0)),
+                     curve.shift, dict(curve.meta))
+
+        return CurveRefit(param, param.theta0[None, :].copy(), 0.0, 1.0, 1.0, curve.shift, rebuild,
+                          [f"{curve.name}:{lab}" for lab in param.labels])
+    raise ConfigError(f"curve {getattr(curve, 'name', '?')} of kind {getattr(curve, 'kind', type(curve).__name__)!r} "
+                      "cannot be trained further")
+
+
+class SymbolicParametrisation:
+    """A closed form with its numeric coefficients as parameters (module docstring)."""
+
+    symmetry = "none"
+    exact_symmetry = "none"
+    symmetry_mode = "exact"
+
+    def __init__(self, expr):
+        import sympy as sp
+
+        self.z = sp.Symbol("z")
+        const, rest = expr.as_coeff_Add()
+        floats: list[float] = []
+        labels: list[str] = []
+        terms = []
+        for term in sp.Add.make_args(rest) if rest != 0 else ():
+            coeff, body = term.as_coeff_Mul()
+            holder = sp.Symbol(f"__c{len(floats)}")
+            floats.append(float(coeff))
+            labels.append(str(body))
+            inner = len(floats)
+            body = _replace_floats(body, floats)
+            labels += [f"{labels[-1]}#{k}" for k in range(len(floats) - inner)]
+            terms.append(holder * body)
+        self.template = sp.Add(*terms)
+        self.const = const
+        self.theta0 = np.asarray(floats, dtype=float)
+        self.labels = labels
+        self.n_params = len(floats)
+        self.symbols = [sp.Symbol(f"__c{i}") for i in range(self.n_params)]
+        full = self.template + const
+        self.pinned_at_zero = bool(sp.simplify(full.subs({self.z: 0})) == 0) if self.n_params else bool(const == 0)
+        args = (self.z, *self.symbols)
+        clean = lambda e: e.replace(sp.DiracDelta, lambda *a: sp.Integer(0))  # noqa: E731 - d sign/dz = 0 off 0
+        self._f = sp.lambdify(args, full, modules="torch")
+        self._grads = [sp.lambdify(args, clean(sp.diff(full, s)), modules="torch") for s in self.symbols]
+        self._dz = sp.lambdify(args, clean(sp.diff(full, self.z)), modules="torch")
+
+    def expression(self, values):
+        import sympy as sp
+
+        return self.template.xreplace({s: sp.Float(float(v)) for s, v in zip(self.symbols, values)}) + self.const
+
+    def init(self, K, generator, dtype):  # pragma: no cover - closed forms start from their own values
+        import torch
+
+        return torch.as_tensor(self.theta0, dtype=dtype).expand(K, -1).clone()
+
+    def _call(self, fn, theta, u):
+        import torch
+
+        if u.dim() == 1:
+            u = u.unsqueeze(0).expand(theta.shape[0], -1)
+        cols = [theta[:, i:i + 1] for i in range(self.n_params)]
+        return torch.broadcast_to(torch.as_tensor(fn(u, *cols), dtype=u.dtype), u.shape)
+
+    def evaluate(self, theta, u, u_both=None):
+        return self._call(self._f, theta, u)
+
+    def evaluate_jacobian(self, theta, u, u_both=None):
+        import torch
+
+        f = self._call(self._f, theta, u)
+        if not self.n_params:
+            return f, f.new_zeros(*f.shape, 0)
+        return f, torch.stack([self._call(g, theta, u) for g in self._grads], dim=-1)
+
+    def evaluate_all(self, theta, u):
+        f, J = self.evaluate_jacobian(theta, u)
+        return f, J, self._call(self._dz, theta, u)
+
+    def decay_groups(self) -> list:
+        return []
+
+    def linear_parts(self, theta, u, u_both=None) -> list:
+        return []
+
+
+def _replace_floats(expr, out: list):
+    """``expr`` with every Float (not exponents) replaced by a placeholder ``__c<i>``."""
+    import sympy as sp
+
+    if isinstance(expr, sp.Float):
+        sym = sp.Symbol(f"__c{len(out)}")
+        out.append(float(expr))
+        return sym
+    if not expr.args:
+        return expr
+    if isinstance(expr, sp.Pow):
+        base, exp = expr.args
+        return sp.Pow(_replace_floats(base, out), exp)  # exponents are structure, not coefficients
+    return expr.func(*[_replace_floats(a, out) for a in expr.args])

@@ -1,0 +1,332 @@
+"""The representations of the paper's methods: Neural (NN-CC), SparseLibrary (SINDy-CC), Basis
+(Parametric) and Symbolic (SR-CC); Polynomial (Poly-CC) lives in :mod:`._polynomial`."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._errors import ConfigError
+from ._base import AbstractCurve, LinearCurve, normalise_symmetry
+
+__all__ = ["Neural", "SparseLibrary", "Basis", "Symbolic", "SPARSE_OPTIMIZERS"]
+
+
+class Neural(AbstractCurve):
+    """A small neural network per curve (NN-CC), with exact parity and an optional learned jump.
+
+    ``f(u) = sym[MLP(u)] + c u + mu tanh(u / eps)`` on the scaled argument ``u = z / max|z|``
+    (see :class:`~charcurves.curves.NeuralCurve` for the composition rule).
+
+    Parameters
+    ----------
+    hidden : tuple of int, optional
+        Hidden layer widths; default the training preset's (one layer of 8 units).
+    activation : {"softplus", "tanh", "relu", "gelu", "silu"}, optional
+        Default the training preset's.
+    symmetry : {None, "odd", "even"}
+        Parity prior, built into the network exactly (or as the paper's penalty under the
+        ``paper`` training preset).
+    jump : bool or "auto"
+        A learned jump at 0 (dry friction). "auto": added when the record has sticking phases or
+        a least-squares test finds a jump at zero velocity significant (velocity curves only).
+
+    Examples
+    --------
+    >>> Neural(symmetry="odd")
+    Neural(symmetry='odd')
+    """
+
+    kind = "neural"
+
+    def __init__(self, hidden=None, activation: str | None = None, symmetry: str | None = None, jump=False):
+        self.hidden = hidden
+        self.activation = activation
+        self.symmetry = symmetry
+        self.jump = jump
+
+    def check(self) -> None:
+        sym = normalise_symmetry(self.symmetry, "Neural")
+        if self.hidden is not None:
+            try:
+                widths = tuple(int(h) for h in self.hidden)
+            except (TypeError, ValueError):
+                widths = ()
+            if not widths or min(widths) < 1 or any(isinstance(h, bool) for h in self.hidden):
+                raise ConfigError(f"Neural hidden must be a tuple of positive layer widths such as (8,) or (16, 16), "
+                                  f"got {self.hidden!r}")
+        if self.jump not in (False, True, "auto"):
+            raise ConfigError(f"Neural jump must be False, True or 'auto', got {self.jump!r}")
+        if self.jump is True and sym == "even":
+            raise ConfigError("a jump at 0 is odd and cannot be part of an even curve; drop the jump or the even prior")
+        self.network(None)  # validates the activation
+
+    def network(self, preset, jump: bool | None = None):
+        """The :class:`~charcurves.curves.NeuralCurve` parametrisation under a training preset."""
+        from ._neural import NeuralCurve
+
+        hidden = tuple(self.hidden) if self.hidden is not None else (preset.hidden if preset is not None else (8,))
+        activation = self.activation or (preset.activation if preset is not None else "softplus")
+        return NeuralCurve(hidden=hidden, activation=activation, symmetry=self.symmetry_name,
+                           symmetry_mode=preset.symmetry_mode if preset is not None else "exact",
+                           linear_term=preset.linear_term if preset is not None else True,
+                           jump=bool(self.jump is True if jump is None else jump))
+
+    def scaling(self, z, preset):
+        if preset is not None and not preset.scale_inputs:
+            return 0.0, 1.0
+        return 0.0, max(float(np.max(np.abs(z))), 1e-300)
+
+    def parametrisation(self, preset):
+        return self.network(preset)
+
+    def fitted(self, name, argument, domain, theta, center, half_width, out_scale, constant: float = 0.0, *,
+               network=None):
+        from ._fitted import NeuralFittedCurve
+
+        return NeuralFittedCurve(name, argument, domain, network if network is not None else self.network(None),
+                                 theta, half_width, out_scale, constant)
+
+
+#: Sparse-regression optimizers of pysindy that SparseLibrary curves use.
+SPARSE_OPTIMIZERS = ("constrained-sr3", "stlsq", "sr3")
+
+
+class SparseLibrary(LinearCurve):
+    """A sparse library of powers of the argument (SINDy-CC), solved by pysindy's optimizers.
+
+    Parameters
+    ----------
+    degree : int
+        Powers ``z, z^2, ..., z^degree`` (odd or even ones only under a parity prior); the paper: 10.
+    symmetry : {None, "odd", "even"}
+    optimizer : {"constrained-sr3", "stlsq", "sr3"}, optional
+        Default: pysindy's ``ConstrainedSR3`` (l0, the input gain fixed by an equality constraint)
+        for a fixed gain, ``STLSQ`` for a free gain (the paper's SINDy).
+    threshold : float, optional
+        l0 threshold (SR3 family, default 1e-5, mapped to pysindy 2's ``reg_weight_lam``) or the
+        STLSQ threshold (default 1e-4).
+    alpha, nu, tol, max_iter
+        STLSQ ridge, SR3 relaxation, tolerance and iterations.
+
+    All SparseLibrary curves of one fit share one sparse regression; their optimizer settings
+    must agree.
+    """
+
+    def __init__(self, degree: int = 10, symmetry: str | None = None, optimizer: str | None = None,
+                 threshold: float | None = None, alpha: float = 0.05, nu: float = 1.0, tol: float = 1e-5,
+                 max_iter: int = 10000):
+        self.degree = degree
+        self.symmetry = symmetry
+        self.optimizer = optimizer
+        self.threshold = threshold
+        self.alpha = alpha
+        self.nu = nu
+        self.tol = tol
+        self.max_iter = max_iter
+
+    def check(self) -> None:
+        normalise_symmetry(self.symmetry, "SparseLibrary")
+        if self.optimizer is not None and self.optimizer not in SPARSE_OPTIMIZERS:
+            raise ConfigError(f"unknown SparseLibrary optimizer {self.optimizer!r}; choose one of "
+                              f"{', '.join(SPARSE_OPTIMIZERS)}")
+        for key in ("threshold", "alpha", "nu", "tol"):
+            v = getattr(self, key)
+            if v is None and key == "threshold":
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v) \
+                    or v < 0 or (key in ("nu", "tol") and v == 0):
+                raise ConfigError(f"SINDy option {key} must be a {'positive' if key in ('nu', 'tol') else 'non-negative'}"
+                                  f" number, got {v!r}")
+        for key, lo, hi in (("degree", 1, 20), ("max_iter", 1, 10**7)):
+            v = getattr(self, key)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= int(v) <= hi:
+                raise ConfigError(f"SINDy option {key} must be an integer from {lo} to {hi}, got {v!r}")
+        if not self.powers():
+            raise ConfigError(f"an {self.symmetry_name} library of degree {self.degree} is empty; raise the degree")
+
+    def powers(self) -> list[int]:
+        from ._polynomial import poly_powers
+
+        return poly_powers(int(self.degree), self.symmetry_name)
+
+    def resolved_optimizer(self, free_gain: bool) -> str:
+        return self.optimizer or ("stlsq" if free_gain else "constrained-sr3")
+
+    def resolved_threshold(self, free_gain: bool) -> float:
+        if self.threshold is not None:
+            return float(self.threshold)
+        return 1e-4 if self.resolved_optimizer(free_gain) == "stlsq" else 1e-5
+
+    def scaling(self, z, preset=None):
+        return 0.0, 1.0  # pysindy sees the raw powers, as in the paper's scripts
+
+    def features(self, u):
+        import torch
+
+        return torch.stack([u**k for k in self.powers()], dim=-1)
+
+    def feature_derivatives(self, u):
+        import torch
+
+        return torch.stack([k * u ** (k - 1) if k > 1 else torch.ones_like(u) for k in self.powers()], dim=-1)
+
+    def n_features(self) -> int:
+        return len(self.powers())
+
+    @property
+    def pinned_at_zero(self) -> bool:
+        return True
+
+    def fitted(self, name, argument, domain, theta, center, half_width, out_scale, constant: float = 0.0):
+        from ._fitted import BasisFittedCurve
+
+        coef = np.asarray(theta, dtype=float).mean(axis=0) * out_scale
+        terms = {k: float(c) for k, c in zip(self.powers(), coef)}
+        if constant:
+            terms[0] = float(constant)
+        active = sorted(k for k, c in terms.items() if c != 0.0)
+        if not active:
+            return BasisFittedCurve(name, argument, domain, ["z"], [0.0])
+        basis = ["1" if k == 0 else ("z" if k == 1 else f"z**{k}") for k in active]
+        return BasisFittedCurve(name, argument, domain, basis, [terms[k] for k in active])
+
+
+class Basis(LinearCurve):
+    """A linear combination of closed-form functions of the argument (Parametric).
+
+    Parameters
+    ----------
+    functions : str or sequence of str
+        Closed forms in ``z`` (the curve's argument), e.g. ``"z, z**3"`` or ``["z", "tanh(50*z)"]``;
+        parsed safely (only z, numbers, arithmetic and sin, cos, tanh, exp, log, sqrt, sign, Abs,
+        atan, sinh, cosh, tan).
+
+    Examples
+    --------
+    >>> Basis("z, z**3").function_list()
+    ['z', 'z**3']
+    """
+
+    def __init__(self, functions="z"):
+        self.functions = functions
+
+    def function_list(self) -> list[str]:
+        if isinstance(self.functions, str):
+            items = [f.strip() for f in self.functions.split(",")]
+        elif isinstance(self.functions, (list, tuple)):
+            items = [str(f).strip() for f in self.functions]
+        else:
+            raise ConfigError(f"Basis functions must be a string like 'z, z**3' or a list of strings, got "
+                              f"{type(self.functions).__name__}")
+        return [f for f in items if f]
+
+    def check(self) -> None:
+        from ._expr import expression_cost_problem, parse_basis_function
+
+        funcs = self.function_list()
+        if not funcs:
+            raise ConfigError("a Basis needs at least one function of z, e.g. Basis('z, z**3')")
+        for text in funcs:
+            problem = expression_cost_problem(text)
+            if problem:
+                raise ConfigError(f"basis function {text[:60]!r} {problem}; write a plain closed form such as 'z**3' "
+                                  "or 'tanh(50*z)'")
+            parse_basis_function(text)
+
+    def _compiled(self):
+        cache = getattr(self, "_cache", None)
+        key = tuple(self.function_list())
+        if cache is None or cache[0] != key:
+            import sympy as sp
+
+            from ._expr import parse_basis_function
+
+            z = sp.Symbol("z")
+            exprs = [parse_basis_function(f) for f in key]
+            funcs = [sp.lambdify(z, e, modules="torch") for e in exprs]
+            derivs = [sp.lambdify(z, sp.diff(e, z), modules="torch") for e in exprs]
+            pinned = all(sp.simplify(e.subs(z, 0)) == 0 for e in exprs)
+            cache = (key, funcs, derivs, pinned)
+            self._cache = cache
+        return cache
+
+    def get_params(self, deep: bool = True):
+        return {"functions": self.functions}
+
+    def scaling(self, z, preset=None):
+        return 0.0, 1.0  # the functions are written in the curve's own argument
+
+    def features(self, u):
+        import torch
+
+        funcs = self._compiled()[1]
+        return torch.stack([torch.broadcast_to(torch.as_tensor(f(u), dtype=u.dtype), u.shape) for f in funcs], dim=-1)
+
+    def feature_derivatives(self, u):
+        import torch
+
+        derivs = self._compiled()[2]
+        return torch.stack([torch.broadcast_to(torch.as_tensor(d(u), dtype=u.dtype), u.shape) for d in derivs], dim=-1)
+
+    def feature_names(self) -> list[str]:
+        return self.function_list()
+
+    def n_features(self) -> int:
+        return len(self.function_list())
+
+    @property
+    def pinned_at_zero(self) -> bool:
+        return bool(self._compiled()[3])
+
+    def fitted(self, name, argument, domain, theta, center, half_width, out_scale, constant: float = 0.0):
+        from ._fitted import BasisFittedCurve
+
+        coef = list(np.asarray(theta, dtype=float).mean(axis=0) * out_scale)
+        funcs = self.function_list()
+        if constant:
+            funcs, coef = funcs + ["1"], coef + [float(constant)]
+        return BasisFittedCurve(name, argument, domain, funcs, coef)
+
+
+class Symbolic(AbstractCurve):
+    """A closed form found by symbolic regression (SR-CC; the engine is Operon by default).
+
+    Parameters
+    ----------
+    operators : "auto" or sequence of str
+        Operator set of the search; "auto": + - * (and tanh for a velocity curve of a record
+        with sticking phases), as the paper.
+    joint : bool
+        Search all curves of the template as one bivariate expression and decompose it afterwards
+        (the paper's SR, method x) instead of the block-coordinate SR-CC loop.
+
+    Symbolic curves are found, not trained: every curve of a fit must then be Symbolic.
+    """
+
+    kind = "symbolic"
+
+    def __init__(self, operators="auto", joint: bool = False):
+        self.operators = operators
+        self.joint = joint
+
+    def check(self) -> None:
+        if not isinstance(self.joint, bool):
+            raise ConfigError(f"Symbolic joint must be True or False, got {self.joint!r}")
+        if self.operators != "auto" and not (isinstance(self.operators, (list, tuple))
+                                             and all(isinstance(o, str) for o in self.operators)):
+            raise ConfigError(f"Symbolic operators must be 'auto' or a list such as ['add', 'mul', 'tanh'], got "
+                              f"{self.operators!r}")
+
+    @property
+    def symmetry_name(self) -> str:
+        return "none"
+
+    def scaling(self, z, preset=None):
+        return 0.0, 1.0
+
+    def parametrisation(self, preset):
+        raise ConfigError("Symbolic curves are found by symbolic regression, not trained; use them for every curve "
+                          "of a fit (SR-CC), or distil trained curves with post_sr")
+
+    def fitted(self, *args, **kwargs):  # pragma: no cover - the symbolic fitter builds its curves itself
+        raise ConfigError("Symbolic curves are built by the symbolic-regression fitter")

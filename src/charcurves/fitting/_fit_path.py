@@ -1,0 +1,142 @@
+"""The one fitting path: prepared records + a template with a representation per curve -> fitted models.
+
+Which fitter runs depends only on the representations: every curve Symbolic -> symbolic regression
+(SR or SR-CC); every curve linear in its parameters -> one least-squares (or pysindy sparse)
+solve; otherwise -> the batched gradient trainer, where linear curves train beside neural ones.
+The same fitters serve every template (the separable family is a template like the others).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from .._errors import ConfigError
+from ..templates import EquationTemplate, sticking_mask
+from ._presets import TrainingPreset
+
+__all__ = ["fit_records", "dry_friction_test", "JUMP_F_THRESHOLD", "fitter_kind", "sticking_masks"]
+
+#: F statistic above which a jump at zero velocity is significant (chi2(1) quantile, p = 0.001)
+JUMP_F_THRESHOLD = 10.83
+
+
+def fitter_kind(reps: dict) -> str:
+    """"symbolic", "linear" or "gradient" for a mapping of curve name -> representation."""
+    kinds = {r.kind for r in reps.values()}
+    if "symbolic" in kinds:
+        if kinds != {"symbolic"}:
+            raise ConfigError("Symbolic curves are found by symbolic regression and cannot be mixed with trained "
+                              "curves in one fit; use Symbolic for every curve (SR-CC) or distil trained curves "
+                              "with post_sr")
+        return "symbolic"
+    return "linear" if kinds == {"linear"} else "gradient"
+
+
+def dry_friction_test(traj, template: EquationTemplate) -> tuple[float, float]:
+    """F statistic and height of a jump at zero velocity, by least squares.
+
+    The target g F - x'' is regressed on smooth odd and even powers of every curve's argument
+    (degree 5), with and without sign(x'); the F statistic of the added column measures how much a
+    jump explains beyond smooth curves. Smooth systems give F of order 1 whatever the noise level
+    (their curves lie in the span), dry friction gives tens to thousands.
+    """
+    velocity = template.velocity_curves
+    if not velocity or template.n_equations != 1:
+        return 0.0, 0.0
+    D = template.design(traj)
+    cols = [np.ones(D["n"])]
+    for z in D["args"].values():
+        u = z / max(float(np.max(np.abs(z))), 1e-300)
+        cols += [u, u**2, u**3, u**5]
+    base = np.column_stack(cols)
+    X = np.column_stack([base, np.sign(D["args"][velocity[0]])])
+    y = template.gain * D["F"] - D["y"]
+    c0, *_ = np.linalg.lstsq(base, y, rcond=None)
+    c1, *_ = np.linalg.lstsq(X, y, rcond=None)
+    sse0 = float(np.sum((y - base @ c0) ** 2))
+    sse1 = float(np.sum((y - X @ c1) ** 2))
+    dof = D["n"] - X.shape[1]
+    if sse1 <= 0 or dof <= 0:
+        return 0.0, 0.0
+    return (sse0 - sse1) / (sse1 / dof), float(c1[-1])
+
+
+def sticking_masks(records, template: EquationTemplate, estimated: list[bool], *, exclude: bool, kind: str,
+                   stick_tol="default") -> list[np.ndarray]:
+    """The samples each record fits: sticking phases (x' = 0 over a run) left out for dry friction.
+
+    The |x'| threshold is exact zeros for given derivatives and 1 % of max|x'| for estimated ones;
+    symbolic fits look for exact zeros first and then 1 %, as the paper's SR. Multi-DOF records
+    and templates without a velocity curve keep every sample.
+    """
+    out = []
+    for rec, est in zip(records, estimated):
+        n = rec.n_samples
+        if not exclude or not template.velocity_curves or getattr(rec, "v", None) is None:
+            out.append(np.ones(n, bool))
+            continue
+        if stick_tol != "default":
+            stuck = sticking_mask(rec, rel_tol=None if stick_tol is None else float(stick_tol))
+        elif kind == "symbolic":
+            stuck = sticking_mask(rec, rel_tol=None)
+            if not stuck.any():
+                stuck = sticking_mask(rec, rel_tol=0.01)
+        else:
+            stuck = sticking_mask(rec, rel_tol=0.01 if est else None)
+        out.append(~stuck)
+    return out
+
+
+def resolve_jumps(reps: dict, records, template: EquationTemplate, estimated: list[bool], preset: TrainingPreset):
+    """The neural curves that get a learned jump, per record (``jump="auto"`` decided per record)."""
+    out = []
+    for rec, est in zip(records, estimated):
+        layout = []
+        for name, rep in reps.items():
+            jump = getattr(rep, "jump", False)
+            if rep.kind != "neural" or jump is False:
+                continue
+            if jump is True:
+                layout.append(name)
+            elif preset.auto_jump and name in template.velocity_curves and (
+                    sticking_mask(rec, rel_tol=0.01 if est else None).any()
+                    or dry_friction_test(rec, template)[0] > JUMP_F_THRESHOLD):
+                layout.append(name)
+        out.append(tuple(layout))
+    return out
+
+
+def fit_records(records, template: EquationTemplate, reps: dict, preset: TrainingPreset, seeds, *, method: str,
+                masks, jumps, options: dict, sr_options: dict | None, device: str = "cpu",
+                threads: int | None = None, progress: Callable | None = None) -> list:
+    """Fit every record with the fitter the representations call for (module docstring)."""
+    kind = fitter_kind(reps)
+    if kind == "symbolic":
+        from ._symbolic_fit import fit_symbolic
+
+        sr_keys = ("outer_iterations", "inner_generations", "tol")
+        return [fit_symbolic(rec, template, reps, method=method, mask=m,
+                             options={k: v for k, v in options.items() if k in sr_keys}, sr_options=sr_options,
+                             random_state=int(s))
+                for rec, s, m in zip(records, seeds, masks)]
+    if kind == "linear":
+        from ._linear_fit import fit_linear
+
+        constant = bool(options.get("constant", True))
+        return [fit_linear(rec, template, reps, method=method, mask=m, constant=constant)
+                for rec, m in zip(records, masks)]
+    from ._gradient_fit import fit_gradient
+
+    out: list = [None] * len(records)
+    groups: dict[tuple, list[int]] = {}
+    for i, rec in enumerate(records):
+        groups.setdefault((rec.n_samples, jumps[i]), []).append(i)
+    for (_, layout), idx in groups.items():
+        models = fit_gradient([records[i] for i in idx], template, reps, preset, [int(seeds[i]) for i in idx],
+                              method=method, masks=[masks[i] for i in idx], jumps=layout, device=device,
+                              threads=threads, progress=progress)
+        for i, m in zip(idx, models):
+            out[i] = m
+    return out

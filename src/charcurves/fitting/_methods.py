@@ -1,0 +1,163 @@
+"""The paper's twelve methods as presets: each names a representation per curve, a prior and post-SR.
+
+``method="nn-cc+sym"`` (and the CLI's ``--method``) is a shorthand for composing objects: it
+builds ``Neural(symmetry="odd")`` for every curve of the template, ``"poly-cc"`` a ``Polynomial``,
+``"sindy-cc+sym"`` an odd ``SparseLibrary``, ``"sr-cc"`` a ``Symbolic`` curve, ``"parametric"`` a
+``Basis`` per curve; ``+post-sr`` distils the fitted curves into closed forms afterwards.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .._errors import ConfigError
+from ..curves import SYMMETRY_NAMES, Basis, Neural, Polynomial, SparseLibrary, Symbolic
+
+__all__ = ["METHODS", "parse_symmetry", "parse_basis_option", "DEFAULT_BASIS", "DEFAULT_GENERAL_BASIS",
+           "method_curve", "check_method_options", "POLY_OPTIONS", "SINDY_OPTIONS"]
+
+#: The paper's twelve methods as named presets of shared parts: a curve representation, whether a
+#: symmetry prior applies (odd curves unless told otherwise) and whether the learned curves are
+#: distilled into closed forms afterwards (post-SR).
+METHODS: dict[str, dict[str, Any]] = {
+    "nn-cc": {"representation": "neural", "symmetry": False, "post_sr": False},
+    "nn-cc+post-sr": {"representation": "neural", "symmetry": False, "post_sr": True},
+    "nn-cc+sym": {"representation": "neural", "symmetry": True, "post_sr": False},
+    "nn-cc+sym+post-sr": {"representation": "neural", "symmetry": True, "post_sr": True},
+    "poly-cc": {"representation": "poly", "symmetry": False, "post_sr": False, "allows_symmetry": True},
+    "sindy": {"representation": "sindy", "symmetry": False, "post_sr": False, "free_gain": True},
+    "sindy-cc": {"representation": "sindy", "symmetry": False, "post_sr": False},
+    "sindy-cc+sym": {"representation": "sindy", "symmetry": True, "post_sr": False},
+    "sindy-cc+sym+post-sr": {"representation": "sindy", "symmetry": True, "post_sr": True},
+    "sr": {"representation": "sr", "symmetry": False, "post_sr": False},
+    "sr-cc": {"representation": "sr-cc", "symmetry": False, "post_sr": False},
+    "parametric": {"representation": "basis", "symmetry": False, "post_sr": False},
+}
+
+#: The paper's Parametric basis for Duffing: f1 = a1 x', f2 = a2 x + a3 x^3.
+DEFAULT_BASIS = {"f1": ["z"], "f2": ["z", "z**3"]}
+#: Default Parametric basis of other templates: a cubic polynomial per curve (constants that
+#: curves trade are resolved by the gauge after the fit).
+DEFAULT_GENERAL_BASIS = ["1", "z", "z**2", "z**3"]
+
+POLY_OPTIONS = ("degree", "rescaling", "basis", "expand_tol", "constant", "exclude_sticking", "stick_tol")
+SINDY_OPTIONS = ("threshold", "degree", "max_iter", "alpha", "nu", "tol", "exclude_sticking", "stick_tol")
+_SR_OPTIONS = ("stick_tol",)
+_SRCC_OPTIONS = ("stick_tol", "outer_iterations", "inner_generations", "tol")
+
+
+def parse_symmetry(sym, curve_names=("f1", "f2")) -> dict[str, str]:
+    """``"f1=odd,f2=odd"`` / ``{"f1": "odd"}`` / ``"odd"`` (all curves) -> ``{"f1": "odd", "f2": "odd"}``."""
+    out = {name: "none" for name in curve_names}
+    if sym is None or sym == "":
+        return out
+    if isinstance(sym, str):
+        if "=" not in sym:
+            items = {name: sym.strip() for name in curve_names}
+        else:
+            items = {}
+            for part in sym.split(","):
+                if not part.strip():
+                    continue
+                if "=" not in part:
+                    raise ConfigError(f"symmetry {part.strip()!r} needs the form CURVE=odd|even|none, e.g. f1=odd,f2=odd")
+                k, v = part.split("=", 1)
+                items[k.strip()] = v.strip()
+    elif isinstance(sym, dict):
+        items = {str(k): str(v) for k, v in sym.items()}
+    else:
+        raise ConfigError(f"symmetry must be a string like 'f1=odd,f2=odd' or a dict, got {type(sym).__name__}")
+    for k, v in items.items():
+        if k not in curve_names:
+            raise ConfigError(f"symmetry given for unknown curve {k!r}; the curves are {', '.join(curve_names)}")
+        if v not in SYMMETRY_NAMES:
+            raise ConfigError(f"unknown symmetry {v!r} for {k}; choose one of {', '.join(SYMMETRY_NAMES)}")
+        out[k] = v
+    return out
+
+
+def parse_basis_option(text, curve_names=("f1", "f2"), *, family: str = "separable") -> dict[str, list[str]]:
+    """``"f1=z; f2=z, z**3"`` -> ``{"f1": ["z"], "f2": ["z", "z**3"]}`` (z is the curve's argument).
+
+    None gives the default: the paper's Duffing basis for the separable family, a cubic
+    polynomial per curve for the others.
+    """
+    from ..curves import parse_basis_function
+
+    if text is None:
+        if family == "separable" and tuple(curve_names) == ("f1", "f2"):
+            return {k: list(v) for k, v in DEFAULT_BASIS.items()}
+        return {k: list(DEFAULT_GENERAL_BASIS) for k in curve_names}
+    if isinstance(text, dict):
+        out = {k: [str(b) for b in (v if isinstance(v, (list, tuple)) else [v])] for k, v in text.items()}
+    else:
+        out = {}
+        for part in str(text).split(";"):
+            if not part.strip():
+                continue
+            if "=" not in part:
+                raise ConfigError(f"basis part {part.strip()!r} has no '='; write e.g. \"f1=z; f2=z, z**3\"")
+            name, funcs = part.split("=", 1)
+            out[name.strip()] = [f.strip() for f in funcs.split(",") if f.strip()]
+    unknown = set(out) - set(curve_names)
+    if unknown:
+        raise ConfigError(f"basis given for unknown curve(s) {sorted(unknown)}; the curves are {', '.join(curve_names)}")
+    missing = [c for c in curve_names if not out.get(c)]
+    if missing:
+        raise ConfigError(f"no basis functions for {missing}; write e.g. \"f1=z; f2=z, z**3\"")
+    for funcs in out.values():
+        for f in funcs:
+            parse_basis_function(f)
+    return out
+
+
+def check_method_options(method: str, options: dict | None) -> dict:
+    """The ``options`` of a method, checked (unknown keys are a ConfigError naming the valid ones)."""
+    options = dict(options or {})
+    rep = METHODS[method]["representation"]
+    valid = {"poly": POLY_OPTIONS, "sindy": SINDY_OPTIONS, "sr": _SR_OPTIONS, "sr-cc": _SRCC_OPTIONS,
+             "basis": ("exclude_sticking", "stick_tol"), "neural": ("exclude_sticking", "stick_tol")}[rep]
+    unknown = sorted(set(options) - set(valid))
+    if unknown:
+        label = {"poly": "poly-cc", "sindy": "SINDy"}.get(rep)
+        if label:
+            raise ConfigError(f"unknown {label} option(s) {unknown}; valid: {', '.join(valid)}")
+        raise ConfigError(f"unknown option(s) {unknown} for {method}; valid: {', '.join(valid) or 'none'}")
+    return options
+
+
+def method_curve(method: str, name: str, *, symmetry: str, jump, options: dict, basis: dict | None,
+                 hidden=None, activation=None, velocity: bool = False):
+    """The representation ``method`` gives curve ``name``."""
+    spec = METHODS[method]
+    rep = spec["representation"]
+    sym = None if symmetry == "none" else symmetry
+    if rep == "neural":
+        if jump == "auto":
+            j = "auto" if velocity else False
+        else:
+            j = name in jump
+        return Neural(hidden=tuple(hidden) if hidden else None, activation=activation, symmetry=sym, jump=j)
+    if rep == "poly":
+        kw = {k: options[k] for k in ("degree", "rescaling", "basis", "expand_tol") if k in options}
+        curve = Polynomial(symmetry=sym, **kw)
+        curve.check()
+        return curve
+    if rep == "sindy":
+        kw = {k: options[k] for k in ("threshold", "degree", "max_iter", "alpha", "nu", "tol") if k in options}
+        curve = SparseLibrary(symmetry=sym if spec["symmetry"] else None,
+                              optimizer="stlsq" if spec.get("free_gain") else "constrained-sr3", **kw)
+        curve.check()
+        return curve
+    if rep in ("sr", "sr-cc"):
+        return Symbolic(joint=rep == "sr")
+    return Basis(list((basis or {})[name]))
+
+
+def poly_constant_option(options: dict) -> bool:
+    value = options.get("constant", True)
+    if not isinstance(value, (bool, np.bool_)):
+        raise ConfigError(f"poly-cc option constant must be True or False, got {value!r}")
+    return bool(value)

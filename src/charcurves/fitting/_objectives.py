@@ -1,0 +1,161 @@
+"""Objectives of a fit: equation error and output error, as objects.
+
+* :class:`EquationError` regresses the template's equation on the record's derivatives (given,
+  or estimated by the differentiator): the paper's loss, fast, exact when the derivatives are.
+* :class:`OutputError` starts from the equation-error fit and refits every curve, the gain, the
+  constants and the initial state of each record segment to the free-run simulation of the
+  measured states (multiple shooting). It is what a measured record needs: there only the state
+  is measured, its derivatives are estimated from noisy data, and equation error inherits their
+  errors -- a bias in the curves and in their arguments (errors in variables) -- while the free
+  run fits the measurement itself.
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import Any
+
+import numpy as np
+
+from .._errors import ConfigError
+
+__all__ = ["EquationError", "OutputError", "OBJECTIVES", "resolve_objective"]
+
+#: Names accepted by ``objective=`` (and the CLI's ``--objective``).
+OBJECTIVES = ("auto", "equation-error", "output-error")
+
+
+class _Objective:
+    name = ""
+
+    @classmethod
+    def _param_names(cls) -> list[str]:
+        return [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
+
+    def get_params(self, deep: bool = True) -> dict[str, Any]:
+        return {n: getattr(self, n) for n in self._param_names()}
+
+    def set_params(self, **params):
+        for k, v in params.items():
+            if k not in self._param_names():
+                raise ConfigError(f"{type(self).__name__} has no parameter {k!r}; valid: {', '.join(self._param_names())}")
+            setattr(self, k, v)
+        return self
+
+    def __repr__(self) -> str:
+        sig = inspect.signature(type(self).__init__)
+        shown = [f"{n}={getattr(self, n)!r}" for n in self._param_names()
+                 if getattr(self, n) != sig.parameters[n].default]
+        return f"{type(self).__name__}({', '.join(shown)})"
+
+    def __eq__(self, other) -> bool:
+        return type(self) is type(other) and self.get_params() == other.get_params()
+
+
+class EquationError(_Objective):
+    """Fit the equation to the derivatives of the record (given or estimated)."""
+
+    name = "equation-error"
+
+    def __init__(self):
+        pass
+
+
+class OutputError(_Objective):
+    """Fit the free-run simulation of the template to the measured states (multiple shooting).
+
+    Parameters
+    ----------
+    segment_length : int, optional
+        Samples per shooting segment (default: chosen from the record, see docs/measured-records.md).
+    continuity : float
+        Weight of the continuity residuals joining consecutive segments (0: independent segments;
+        large: one free run of the whole record).
+    substeps : int, optional
+        RK4 steps per sample interval (default: chosen from the record's samples per period).
+    hold : {"linear", "zoh", "bandlimited"}
+        The input between its samples.
+    max_iter : int
+        Levenberg-Marquardt iterations at most.
+    tol : float
+        Stop when the relative decrease of the loss stays below this.
+    max_segments : int
+        Longer records use this many segments spread over the record (the rest is not simulated).
+    time_budget : float
+        Seconds; training stops at the next iteration after it is spent.
+    """
+
+    name = "output-error"
+
+    def __init__(self, segment_length: int | None = None, continuity: float = 0.0, substeps: int | None = None,
+                 hold: str = "linear", max_iter: int = 40, tol: float = 1e-6, max_segments: int = 64,
+                 time_budget: float = 600.0):
+        self.segment_length = segment_length
+        self.continuity = continuity
+        self.substeps = substeps
+        self.hold = hold
+        self.max_iter = max_iter
+        self.tol = tol
+        self.max_segments = max_segments
+        self.time_budget = time_budget
+
+    def check(self) -> None:
+        from ..data import HOLDS, check_hold
+
+        def pos_int(name, value, low):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+                raise ConfigError(f"OutputError {name} must be an integer >= {low}, got {value!r}")
+
+        if self.segment_length is not None:
+            pos_int("segment_length", self.segment_length, 16)
+        if self.hold not in HOLDS:
+            raise ConfigError(f"unknown input hold {self.hold!r}; choose one of {', '.join(HOLDS)}")
+        check_hold(self.hold, 1 if self.substeps is None else self.substeps)
+        pos_int("max_iter", self.max_iter, 1)
+        pos_int("max_segments", self.max_segments, 1)
+        for name in ("continuity", "tol"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0:
+                raise ConfigError(f"OutputError {name} must be a non-negative number, got {v!r}")
+        b = self.time_budget
+        if isinstance(b, bool) or not isinstance(b, (int, float)) or not b > 0:
+            raise ConfigError(f"time_budget must be a positive number of seconds, got {b!r}")
+
+
+#: ``refine_options`` of the older API -> OutputError parameters
+_REFINE_KEYS = {"hold": "hold", "substeps": "substeps", "segment_length": "segment_length", "max_nfev": "max_iter",
+                "time_budget": "time_budget"}
+
+
+def resolve_objective(objective, refine=None, refine_options=None) -> tuple[str, OutputError]:
+    """``(mode, OutputError settings)``: mode is "auto", "equation-error" or "output-error"."""
+    if refine is not None:
+        legacy = {"none": "equation-error", "output-error": "output-error", "auto": "auto"}
+        if refine not in legacy:
+            raise ConfigError(f"unknown refine {refine!r}; choose one of {', '.join(legacy)}")
+        if objective not in ("auto", None) and not isinstance(objective, _Objective) and legacy[refine] != objective:
+            raise ConfigError("give the objective once: refine= is the older name of objective=")
+        objective = legacy[refine] if objective in ("auto", None) else objective
+    settings = OutputError()
+    if refine_options is not None:
+        if not isinstance(refine_options, dict):
+            raise ConfigError(f"refine_options must be a dict such as {{'hold': 'linear'}}, got "
+                              f"{type(refine_options).__name__}")
+        unknown = sorted(set(refine_options) - set(_REFINE_KEYS))
+        if unknown:
+            raise ConfigError(f"unknown refine option {unknown[0]!r}; valid: {', '.join(_REFINE_KEYS)}")
+        settings.set_params(**{_REFINE_KEYS[k]: v for k, v in refine_options.items()})
+    if isinstance(objective, OutputError):
+        settings = objective
+        mode = "output-error"
+    elif isinstance(objective, EquationError):
+        mode = "equation-error"
+    elif isinstance(objective, str) and objective in OBJECTIVES:
+        mode = objective
+    elif objective is None:
+        mode = "auto"
+    else:
+        raise ConfigError(f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}, EquationError() "
+                          "or OutputError(...)")
+    settings.check()
+    return mode, settings

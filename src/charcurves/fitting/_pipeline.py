@@ -1,0 +1,154 @@
+"""What ``CharacteristicCurves.fit_many`` does, step by step, for every method and composition.
+
+1. resolve the template and a representation per curve (method presets fill unset curves);
+2. prepare each record: derivatives given or estimated by the differentiator, identifiability checks;
+3. the samples each record fits (sticking phases left out) and the learned jumps (dry friction);
+4. the fit by equation error through the one fitting path (:mod:`._fit_path`);
+5. post-SR (closed forms), when asked;
+6. output error, when the objective asks for it ("auto": on records whose derivatives were
+   estimated), on the final curves (the closed forms after post-SR);
+7. the settings that shaped the answer, stored in each model's ``info["settings"]``.
+
+Ctrl-C during training keeps the best weights so far; during post-SR or output error it keeps the
+finished fit and says what was skipped.
+"""
+
+from __future__ import annotations
+
+from .._errors import ConfigError
+from ._fit_path import fit_records, fitter_kind, resolve_jumps, sticking_masks
+from ._methods import METHODS, check_method_options
+from ._objectives import resolve_objective
+
+__all__ = ["run_pipeline", "raw_fit", "check_device", "differentiator_used"]
+
+
+def check_device(device: str) -> None:
+    """A torch device that exists on this machine (only gradient-trained curves use one)."""
+    import torch
+
+    try:
+        dev = torch.device(device)
+    except (RuntimeError, TypeError, ValueError):
+        raise ConfigError(f"unknown device {device!r}; use --device cpu or cuda") from None
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise ConfigError(f"device {device!r} asked for, but CUDA is not available on this machine; use --device cpu")
+    if dev.type not in ("cpu", "cuda"):
+        raise ConfigError(f"device {device!r} is not supported; use --device cpu or cuda")
+
+
+def differentiator_used(record, value, estimated: bool) -> str:
+    """What gave the derivatives: the record's own columns, or the differentiator ("auto" resolved)."""
+    from ..data import make_differentiator
+
+    if not estimated:
+        return "given (the record's derivative columns)"
+    if isinstance(value, str) and value.strip().lower() in ("auto", "given"):
+        uniform = getattr(record, "sampling_nonuniformity", lambda: 0.0)() <= 1e-3
+        return repr(make_differentiator("spectral" if uniform else "spline")) + " (auto)"
+    return repr(make_differentiator(value))
+
+
+def raw_fit(est, records, seeds=None):
+    """The equation-error fits alone (no post-SR, no output error) and the prepared records."""
+    ctx = _fit_stage(est, list(records), seeds)
+    return ctx["models"], ctx["prepared"]
+
+
+def _fit_stage(est, records: list, seeds):
+    from ..templates import prepare_record
+
+    tmpl, structure, sym, method = est.resolve()
+    mode, oe_settings = resolve_objective(est.objective, est.refine, est.refine_options)
+    preset = est.preset_object()
+    reps = tmpl.curves
+    kind = fitter_kind(reps)
+    if kind == "gradient":
+        check_device(est.device)
+    options = check_method_options(method, est.options) if method in METHODS else dict(est.options or {})
+    diff = est.differentiator_value()
+    prepared, estimated = [], []
+    for rec in records:
+        p, e = prepare_record(rec, structure, sym, diff, f"method {method}", est.without_prior)
+        prepared.append(p)
+        estimated.append(e)
+    if seeds is None:
+        seeds = [est.random_state + i for i in range(len(prepared))]
+    exclude = bool(est.exclude_sticking) and bool(options.get("exclude_sticking", True))
+    masks = sticking_masks(prepared, structure, estimated, exclude=exclude, kind=kind,
+                           stick_tol=options.get("stick_tol", "default"))
+    jumps = resolve_jumps(reps, prepared, structure, estimated, preset) if kind == "gradient" else \
+        [() for _ in prepared]
+    models = fit_records(prepared, structure, reps, preset, seeds, method=method, masks=masks, jumps=jumps,
+                         options=options, sr_options=dict(est.sr_options or {}), device=est.device,
+                         threads=est.threads, progress=est.progress)
+    return {"models": models, "prepared": prepared, "estimated": estimated, "seeds": seeds, "mode": mode,
+            "oe_settings": oe_settings, "preset": preset, "reps": reps, "structure": structure, "sym": sym,
+            "method": method, "diff": diff, "jumps": jumps}
+
+
+def run_pipeline(est, records: list, seeds=None) -> list:
+    ctx = _fit_stage(est, records, seeds)
+    models, prepared, estimated, seeds = ctx["models"], ctx["prepared"], ctx["estimated"], ctx["seeds"]
+    mode, oe_settings, preset, reps = ctx["mode"], ctx["oe_settings"], ctx["preset"], ctx["reps"]
+    structure, sym, method, diff, jumps = ctx["structure"], ctx["sym"], ctx["method"], ctx["diff"], ctx["jumps"]
+    stop = any(m.info.get("interrupted") for m in models)
+    use_oe = [mode == "output-error" or (mode == "auto" and e and preset.name != "paper") for e in estimated]
+    if est.wants_post_sr():
+        models, stop = _post_sr(est, models, prepared, seeds, stop)
+    models, stop = _output_error(models, prepared, records, use_oe, oe_settings, preset, est.progress, stop,
+                                 strict=mode == "output-error")
+    for k, m in enumerate(models):
+        m.method = method
+        if stop:
+            m.info["interrupted"] = True
+        m.info["settings"] = {
+            "template": structure.equation,
+            "family": structure.family,
+            "curves": {n: repr(r) for n, r in reps.items()},
+            "differentiator": differentiator_used(prepared[k], diff, estimated[k]),
+            "objective": "output-error" if use_oe[k] else "equation-error",
+            "objective_requested": mode,
+            "post_sr": est.wants_post_sr(),
+            "preset": preset.name,
+            "symmetry": dict(sym),
+            "jumps": list(jumps[k]),
+            "gauge": list(structure.anchors),
+        }
+    return models
+
+
+def _post_sr(est, models, prepared, seeds, stop):
+    """Distil every model (Ctrl-C keeps the finished networks of the models not distilled yet: Operon
+    does not watch for Ctrl-C, it takes effect when the current curve's search returns)."""
+    from ._post_sr import distill_model
+
+    done = []
+    for m, s, tr in zip(models, seeds, prepared):
+        if not stop:
+            try:
+                done.append(distill_model(m, sr_options=dict(est.sr_options or {}), random_state=int(s), traj=tr))
+                continue
+            except KeyboardInterrupt:
+                stop = True
+        m.info["post_sr"] = "skipped: interrupted"
+        done.append(m)
+    return done, stop
+
+
+def _output_error(models, prepared, raw, use_oe, settings, preset, progress, stop, strict=False):
+    from ._output_error import output_error_fit
+
+    out = []
+    for m, p, r, wanted in zip(models, prepared, raw, use_oe):
+        if wanted and not stop:
+            try:
+                out.append(output_error_fit(m, p, r, settings, preset=preset, progress=progress, strict=strict))
+                stop = stop or bool(out[-1].info.get("interrupted"))
+                continue
+            except KeyboardInterrupt:  # keep the finished fit, without output error, and say so
+                stop = True
+        if wanted and stop:
+            m.info["refine"] = "skipped: interrupted"
+        out.append(m)
+    return out, stop

@@ -1,0 +1,298 @@
+"""One training loop for every gradient-trained model: batched Adam, then batched Levenberg-Marquardt
+with Bayesian regularisation (MacKay's evidence), in chunks of independent models.
+
+The loop only sees a problem object (:class:`~._problem.LeastSquaresProblem`: residuals, their
+Jacobian, the weight-decay rows), so equation error, output error and every curve
+representation train through it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+from collections.abc import Callable
+
+import torch
+
+__all__ = ["TrainingLog", "train", "train_in_chunks", "train_with_preset", "chunk_log", "merge_logs",
+           "torch_threads", "start_weights"]
+
+
+@dataclasses.dataclass
+class TrainingLog:
+    adam_steps: int = 0
+    lm_iterations: int = 0
+    history: list = dataclasses.field(default_factory=list)  # (phase, step, mean loss)
+    stopped_by: str = ""
+    interrupted: bool = False
+    effective_parameters: list = dataclasses.field(default_factory=list)
+
+
+def _adam(problem, theta, steps, lr, stop_loss, log, progress, holder, check_every=100):
+    theta = theta.clone().requires_grad_(True)
+    opt = torch.optim.Adam([theta], lr=lr)
+    done = torch.zeros(theta.shape[0], dtype=torch.bool, device=theta.device)
+    # a model whose loss turns non-finite goes back to its last finite weights and stops there
+    diverged = torch.zeros_like(done)
+    last_good = theta.detach().clone()
+    # Ctrl-C keeps, per model, the best weights seen at a checkpoint (not the latest ones)
+    best, best_loss = last_good.clone(), torch.full_like(done, float("inf"), dtype=theta.dtype)
+    for step in range(steps):
+        opt.zero_grad(set_to_none=True)
+        per_model = problem.loss(theta)
+        per_model.sum().backward()
+        if step % check_every == 0 or step == steps - 1:
+            with torch.no_grad():
+                bad = ~torch.isfinite(per_model.detach())
+                if bool(bad.any()):
+                    diverged |= bad
+                    theta[bad] = last_good[bad]
+                last_good = theta.detach().clone()
+                done = (per_model.detach() < stop_loss) | diverged
+                better = torch.isfinite(per_model.detach()) & (per_model.detach() < best_loss)
+                best = torch.where(better.unsqueeze(1), last_good, best)
+                best_loss = torch.where(better, per_model.detach(), best_loss)
+            log.history.append(("adam", step, float(per_model.detach()[~diverged].mean())))
+            holder["theta"] = best
+            if progress is not None:
+                progress("adam", step, steps, float(per_model.detach().mean()))
+            if bool(done.all()):
+                log.stopped_by = "stop_loss"
+                break
+        if done.any():
+            # models already below the stop loss keep their weights (as separate runs would):
+            # Adam's momentum would still move them, so restore them after the step
+            frozen = theta.detach()[done].clone()
+            opt.step()
+            with torch.no_grad():
+                theta[done] = frozen
+        else:
+            opt.step()
+        log.adam_steps = step + 1
+    holder["theta"] = theta.detach()
+    return theta.detach()
+
+
+def _evidence_update(problem, theta, JtJ, r):
+    """MacKay's evidence approximation (Foresee & Hagan's Bayesian regularisation for LM).
+
+    With E_D the raw sum of squared data residuals over N samples and E_W the squared norm of the
+    network weights, the most probable hyperparameters satisfy alpha = gamma / (2 E_W) and
+    beta = (N - gamma) / (2 E_D), where gamma = P_w - 2 alpha tr_w(H^-1) is the effective number
+    of weights and H = 2 beta J_D^T J_D + 2 alpha I_w the Gauss-Newton Hessian. In the loss
+    ||r||^2 + lambda ||w||^2 (r scaled by 1/sqrt(N)) this is lambda = alpha / (beta N).
+    ``JtJ`` and ``r`` are those LM already has at ``theta`` (decay rows included).
+    """
+    K, P, _ = JtJ.shape
+    N = problem.n_data
+    n_used = problem.n_used
+    idx = problem.decay_index
+    G = problem.n_decay_groups
+    lam = problem.decay_per_group(K).to(theta.dtype)  # (K, G)
+    masks = torch.zeros(G, P, dtype=theta.dtype, device=theta.device)
+    masks[problem.decay_group, idx] = 1.0
+    m_g = masks.sum(1)  # (G,) weights per group
+    lam_param = lam @ masks  # (K, P)
+    # data part of J^T J (in raw units): remove the decay rows' lambda * I_w, undo the 1/sqrt(N) scaling
+    JtJ_data = (JtJ - torch.diag_embed(lam_param)) * n_used.view(K, 1, 1)
+    E_D = r[:, :N].pow(2).sum(1) * n_used
+    E_W = (theta.pow(2) @ masks.T).clamp_min(1e-12)  # (K, G)
+    gamma_prev = problem.gamma if problem.gamma is not None else m_g.expand(K, G)
+    beta = ((n_used - gamma_prev.sum(1)) / (2 * E_D)).clamp_min(1e-12)
+    alpha = lam * (beta * n_used).view(K, 1)  # (K, G)
+    H = 2 * beta.view(K, 1, 1) * JtJ_data + torch.diag_embed(2 * (alpha @ masks) + 1e-10)
+    L, info = torch.linalg.cholesky_ex(H)
+    ok = info == 0  # a model whose Hessian is not positive definite keeps its decay this step
+    L = torch.where(ok.view(K, 1, 1), L, torch.eye(P, dtype=L.dtype, device=L.device).expand(K, P, P))
+    Hinv_diag = torch.diagonal(torch.cholesky_inverse(L), dim1=1, dim2=2)
+    tr_w = Hinv_diag @ masks.T  # (K, G)
+    gamma = torch.minimum((m_g - 2 * alpha * tr_w).clamp_min(1.0), m_g)
+    gamma = torch.where(ok.view(K, 1), gamma, gamma_prev)
+    problem.gamma = gamma
+    alpha_new = gamma / (2 * E_W)
+    beta_new = ((n_used - gamma.sum(1)) / (2 * E_D)).clamp_min(1e-12)
+    lam_new = torch.where(ok.view(K, 1), alpha_new / (beta_new * n_used).view(K, 1), lam)
+    if problem.weight_decay.dim() < 2 and G == 1:
+        lam_new = lam_new[:, 0]  # keep the caller's (K,) layout
+    return lam_new, gamma.sum(1)
+
+
+def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress, holder):
+    K, P = theta.shape
+    if problem.bayesian:
+        shape = (K,) if problem.n_decay_groups == 1 else (K, problem.n_decay_groups)
+        problem.set_weight_decay(torch.full(shape, 1e-8, dtype=theta.dtype, device=theta.device))
+    r, J = problem.residuals_jacobian(theta)
+    cost = r.pow(2).sum(1)
+    mu = torch.full((K,), 1e-3, dtype=theta.dtype, device=theta.device)
+    active = cost > stop_loss
+    stalls = torch.zeros(K, dtype=torch.long, device=theta.device)
+    eye = torch.eye(P, dtype=theta.dtype, device=theta.device)
+    for it in range(max_iter):
+        if not bool(active.any()):
+            break
+        JtJ = J.transpose(1, 2) @ J
+        g = (J.transpose(1, 2) @ r.unsqueeze(-1)).squeeze(-1)
+        diag = torch.diagonal(JtJ, dim1=1, dim2=2)
+        # Marquardt scaling with a floor so directions the data do not see stay damped
+        scale = diag + 1e-9 * diag.max(dim=1, keepdim=True).values + 1e-12
+        A = JtJ + (mu.unsqueeze(-1) * scale).unsqueeze(-1) * eye
+        L, info = torch.linalg.cholesky_ex(A)
+        step = -torch.cholesky_solve(g.unsqueeze(-1), L).squeeze(-1)
+        ok_solve = info == 0
+        step = torch.where(ok_solve.unsqueeze(-1) & active.unsqueeze(-1), step, torch.zeros_like(step))
+        trial = theta + step
+        r_new = problem.residuals(trial)
+        cost_new = r_new.pow(2).sum(1)
+        accept = active & ok_solve & torch.isfinite(cost_new) & (cost_new < cost)
+        rel = torch.where(accept, (cost - cost_new) / cost.clamp_min(1e-300), torch.zeros_like(cost))
+        theta = torch.where(accept.unsqueeze(-1), trial, theta)
+        cost = torch.where(accept, cost_new, cost)
+        if bool(accept.any()):
+            # the Jacobian only changes where a step was taken: recompute it once, at the new point
+            r, J = problem.residuals_jacobian(theta)
+        holder["theta"] = theta
+        mu = torch.where(accept, (mu / 3).clamp_min(1e-12), (mu * 4).clamp_max(1e12))
+        stalls = torch.where(accept & (rel < tol), stalls + 1, torch.where(accept, 0, stalls))
+        if problem.bayesian and bool(accept.any()):
+            # re-estimate the decay of the models that moved; the objective changes with it,
+            # so the decay rows of the residuals and Jacobian are refreshed under the new value
+            lam_new, gamma = _evidence_update(problem, theta, J.transpose(1, 2) @ J, r)
+            lam_old = torch.as_tensor(problem.weight_decay, device=theta.device).expand_as(lam_new)
+            moved = (accept & active).view(K, *([1] * (lam_new.dim() - 1)))
+            problem.set_weight_decay(torch.where(moved, lam_new, lam_old))
+            problem.refresh_decay_rows(theta, r, J)  # only the decay rows depend on the decay
+            cost = r.pow(2).sum(1)
+            log.effective_parameters = gamma.tolist()
+        finished = (stalls >= 3) | (mu >= 1e12) | (cost < stop_loss)
+        active = active & ~finished
+        log.lm_iterations = it + 1
+        if it % 10 == 0:
+            log.history.append(("lm", it, float(cost.mean())))
+            if progress is not None:
+                progress("lm", it, max_iter, float(cost.mean()))
+    log.stopped_by = log.stopped_by or ("stall" if not bool(active.any()) else "max_iter")
+    return theta
+
+
+def train(
+    problem: BatchedProblem,
+    theta0: torch.Tensor,
+    *,
+    adam_steps: int,
+    adam_lr: float,
+    lm_max_iter: int,
+    lm_tol: float,
+    stop_loss: float,
+    progress: Callable | None = None,
+) -> tuple[torch.Tensor, TrainingLog]:
+    """Train ``theta0`` (``(K, P)``) on ``problem``; Ctrl-C keeps the best weights so far."""
+    log = TrainingLog()
+    holder = {"theta": theta0}
+    try:
+        if adam_steps > 0:
+            _adam(problem, holder["theta"], adam_steps, adam_lr, stop_loss, log, progress, holder)
+        if lm_max_iter > 0:
+            with torch.no_grad():
+                _levenberg_marquardt(
+                    problem, holder["theta"], lm_max_iter, lm_tol, stop_loss, log, progress, holder
+                )
+    except KeyboardInterrupt:
+        log.interrupted = True
+        log.stopped_by = "interrupted"
+    return holder["theta"].detach(), log
+
+
+@contextlib.contextmanager
+def torch_threads(n: int | None):
+    """Run with ``n`` torch threads and restore the previous count afterwards."""
+    import torch
+
+    if n is None:
+        yield
+        return
+    old = torch.get_num_threads()
+    torch.set_num_threads(max(1, int(n)))
+    try:
+        yield
+    finally:
+        torch.set_num_threads(old)
+
+
+def start_weights(seeds, n_starts: int, draw) -> torch.Tensor:
+    """Initial weights ``(len(seeds) * n_starts, P)``: ``draw(generator)`` gives one row's parts,
+    each (seed, start) row from its own generator so a seed gives the same start in any batch."""
+    import torch
+
+    return torch.cat([torch.cat(draw(torch.Generator().manual_seed(int(seed) * 7919 + r)), dim=1)
+                      for seed in seeds for r in range(n_starts)], dim=0)
+
+
+def train_with_preset(problem, theta0, preset: TrainingPreset, *, device, chunk_models: int | None, progress=None):
+    """Train every model start of ``problem`` with ``preset``'s optimiser settings, in chunks.
+
+    Models are independent, so they train in chunks: the Jacobians of a chunk stay small enough
+    for the cache and memory stays bounded, with results identical to one batch (48 models on a
+    CPU; a GPU wants the whole batch at once). Chunks hold whole groups of ``n_starts``.
+    """
+    import torch
+
+    if chunk_models is None:
+        chunk_models = 48 if torch.device(device).type == "cpu" else 4096
+    R = preset.n_starts
+    chunk = max(R, (chunk_models // R) * R)
+    return train_in_chunks(problem, theta0, chunk, progress=progress, adam_steps=preset.adam_steps,
+                           adam_lr=preset.adam_lr, lm_max_iter=preset.lm_max_iter, lm_tol=preset.lm_tol,
+                           stop_loss=preset.stop_loss)
+
+
+def train_in_chunks(problem, theta0, chunk: int, *, progress=None, **train_options):
+    """Train the models of ``problem`` ``chunk`` rows at a time: ``(theta, [(start, subproblem, log)])``.
+
+    Ctrl-C ends the whole call: the chunk in training keeps its best weights so far, the chunks
+    after it are not trained (their models keep their initial weights; their log says
+    ``stopped_by="not trained: interrupted"``), and every chunk's log is marked interrupted, so
+    no caller starts further work (post-SR, refinement) on any model of an interrupted call.
+    """
+    import torch
+
+    
+    parts, logs = [], []
+    interrupted = False
+    for start in range(0, problem.K, chunk):
+        sub = problem.subset(slice(start, start + chunk))
+        lg = None
+        if not interrupted:
+            try:
+                th, lg = train(sub, theta0[start:start + chunk], progress=progress, **train_options)
+            except KeyboardInterrupt:  # outside train's own handler: the chunk keeps its initial weights
+                lg = None
+            interrupted = lg is None or lg.interrupted
+        if lg is None:
+            th, lg = theta0[start:start + chunk].detach(), TrainingLog(stopped_by="not trained: interrupted")
+        parts.append(th)
+        logs.append((start, sub, lg))
+    if interrupted:
+        for _, sub, lg in logs:
+            lg.interrupted = True
+            if len(lg.effective_parameters) != sub.K:  # stopped before LM: keep rows aligned with models
+                lg.effective_parameters = [None] * sub.K
+    return torch.cat(parts, dim=0), logs
+
+
+def chunk_log(logs, row: int):
+    """The log of the chunk that trained model row ``row`` (see :func:`train_in_chunks`)."""
+    return next(lg for start, sub, lg in logs if start <= row < start + sub.K)
+
+
+def merge_logs(logs):
+    out = TrainingLog()
+    out.adam_steps = max(lg.adam_steps for lg in logs)
+    out.lm_iterations = max(lg.lm_iterations for lg in logs)
+    out.stopped_by = ",".join(sorted({lg.stopped_by for lg in logs}))
+    out.interrupted = any(lg.interrupted for lg in logs)
+    out.effective_parameters = [g for lg in logs for g in lg.effective_parameters]
+    out.history = [h for lg in logs for h in lg.history]
+    return out
+
+

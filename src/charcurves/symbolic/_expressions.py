@@ -1,0 +1,233 @@
+"""Expression utilities shared by the engines, the selection and the fitters: complexity, term
+split, safe evaluation, constant polishing, simplification of saturated steps, infix parsing."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+__all__ = ["expression_complexity", "numeric_atoms", "n_constants", "canonical", "split_terms", "lambdify_numpy",
+           "eval_expression", "polish_constants", "desaturate", "tidy", "parse_infix", "INFIX_FUNCS"]
+
+def expression_complexity(expr) -> int:
+    """Size of an expression tree, counted as a search without ``pow`` would build it.
+
+    Every symbol, constant and operator counts 1; ``b**n`` for an integer n >= 2 counts as the
+    n-fold product (``z**3`` = z*z*z = 5), so a cubic is not mistaken for something as simple as
+    a linear term.
+    """
+    import sympy as sp
+
+    if expr.is_Atom:
+        return 1
+    if expr.is_Pow:
+        base, ex = expr.args
+        if ex.is_Integer and int(ex) >= 2:
+            n = int(ex)
+            return n * expression_complexity(base) + n - 1
+        if ex.is_Integer and int(ex) == -1:
+            return 2 + expression_complexity(base)
+        return 1 + expression_complexity(base) + expression_complexity(ex)
+    if isinstance(expr, (sp.Add, sp.Mul)):
+        return sum(expression_complexity(a) for a in expr.args) + len(expr.args) - 1
+    return 1 + sum(expression_complexity(a) for a in expr.args)
+
+
+def numeric_atoms(expr) -> list:
+    """The Floats of ``expr`` (the fitted constants; integer exponents are structure)."""
+    import sympy as sp
+
+    return sorted(expr.atoms(sp.Float), key=lambda f: sp.default_sort_key(f))
+
+
+def n_constants(expr) -> int:
+    import sympy as sp
+
+    return len([a for a in sp.preorder_traversal(expr) if isinstance(a, sp.Float)])
+
+
+def canonical(expr):
+    """Expand products and merge constants (``(a z)(b z) + c`` -> ``ab z**2 + c``).
+
+    ``exp``/``log`` rules are off: they would only trade one form for another.
+    """
+    import sympy as sp
+
+    try:
+        out = sp.expand(expr, power_exp=False, power_base=False, log=False)
+    except Exception:  # pragma: no cover - sympy failures on exotic trees
+        out = expr
+    # sympy keeps exact 1.0 factors as Floats: fold Float(1)*b into b only via the term split
+    return out
+
+
+def split_terms(expr):
+    """``sum c_j b_j`` -> [(c_j, b_j)] with numeric c_j (b_j = 1 for the constant)."""
+    import sympy as sp
+
+    terms = sp.Add.make_args(expr)
+    merged: dict[Any, float] = {}
+    for t in terms:
+        c, rest = t.as_coeff_Mul()
+        if not c.is_Number:
+            c, rest = sp.Integer(1), t
+        merged[rest] = merged.get(rest, 0.0) + float(c)
+    return [(c, b) for b, c in merged.items()]
+
+
+def lambdify_numpy(expr, symbols):
+    import sympy as sp
+
+    return sp.lambdify(symbols, expr, modules="numpy")
+
+
+def eval_expression(expr, symbols, X) -> np.ndarray | None:
+    """Values of ``expr`` on the columns of X; None when not finite."""
+    n = X.shape[0]
+    if not (expr.free_symbols & set(symbols)):
+        try:
+            val = float(expr)
+        except (TypeError, ValueError):
+            return None
+        return np.full(n, val) if math.isfinite(val) else None
+    f = lambdify_numpy(expr, symbols)
+    with np.errstate(all="ignore"):
+        try:
+            out = np.asarray(f(*[X[:, i] for i in range(X.shape[1])]), dtype=float)
+        except (TypeError, ValueError, ZeroDivisionError, OverflowError, AttributeError):
+            return None
+    out = np.broadcast_to(out, (n,)).astype(float)
+    if not np.all(np.isfinite(out)):
+        return None
+    return out
+
+
+def polish_constants(expr, symbols, X, y, *, max_nfev: int = 200):
+    """Least-squares refinement of every numeric constant of ``expr`` on (X, y).
+
+    Parameters
+    ----------
+    expr : sympy.Expr
+    symbols : sequence of sympy.Symbol
+        The variables, in the column order of X.
+    X : (N, d) array
+    y : (N,) array
+
+    Returns
+    -------
+    (sympy.Expr, float)
+        The polished expression and its MSE; the input unchanged when polishing does not lower
+        the MSE (or fails).
+    """
+    import sympy as sp
+    from scipy.optimize import least_squares
+
+    y = np.asarray(y, dtype=float)
+    base = eval_expression(expr, symbols, X)
+    mse0 = float(np.mean((base - y) ** 2)) if base is not None else math.inf
+    consts = numeric_atoms(expr)
+    if not consts:
+        return expr, mse0
+    params = sp.symbols(f"__c0:{len(consts)}")
+    template = expr.xreplace(dict(zip(consts, params)))
+    f = sp.lambdify(list(symbols) + list(params), template, modules="numpy")
+    cols = [X[:, i] for i in range(X.shape[1])]
+    p0 = np.array([float(c) for c in consts])
+
+    def resid(p):
+        with np.errstate(all="ignore"):
+            r = np.broadcast_to(np.asarray(f(*cols, *p), dtype=float), y.shape) - y
+        return np.where(np.isfinite(r), r, 1e6)
+
+    try:
+        sol = least_squares(resid, p0, method="trf", x_scale="jac", max_nfev=max_nfev)
+    except (ValueError, FloatingPointError, OverflowError):  # pragma: no cover - defensive
+        return expr, mse0
+    new = template.xreplace({p: sp.Float(v, 15) for p, v in zip(params, sol.x)})
+    vals = eval_expression(new, symbols, X)
+    if vals is None:
+        return expr, mse0
+    mse = float(np.mean((vals - y) ** 2))
+    return (new, mse) if mse <= mse0 else (expr, mse0)
+
+
+def desaturate(expr, symbols, X):
+    """Simplify saturated steps: ``tanh(k s)`` with ``|k s| >= 20`` on every sample.
+
+    A jump sampled without points inside it leaves k bounded only from below, and polishing
+    drifts it to absurd values (1e8); at ``|k s| >= 20`` tanh equals sign(s) to double precision,
+    so k is lowered to ``20 / min|s|`` (same values on the data, a less stiff forward model), and
+    ``tanh(c tanh(k s))`` of a saturated step is rewritten ``tanh(c) tanh(k s)`` (equal wherever
+    the step is +-1 or 0).
+    """
+    import sympy as sp
+
+    cols = {s: X[:, i] for i, s in enumerate(symbols)}
+    saturated = set()
+    rep = {}
+    for t in expr.atoms(sp.tanh):
+        c, s = t.args[0].as_coeff_Mul()
+        if s not in cols or not c.is_Float:
+            continue
+        a = np.abs(cols[s])
+        a = a[a > 0]
+        if a.size == 0:
+            continue
+        k_min = 20.0 / float(a.min())
+        if abs(float(c)) >= k_min:
+            new = sp.tanh(sp.Float(math.copysign(k_min, float(c)), 15) * s)
+            rep[t] = new
+            saturated.add(new)
+    out = expr.xreplace(rep) if rep else expr
+    for _ in range(4):  # unwrap nesting level by level
+        rep = {}
+        for t in out.atoms(sp.tanh):
+            c, inner = t.args[0].as_coeff_Mul()
+            if inner in saturated and c.is_Number:
+                rep[t] = sp.Float(math.tanh(float(c)), 15) * inner
+        if not rep:
+            break
+        out = out.xreplace(rep)
+    return out
+
+
+def tidy(expr):
+    """Drop exact-zero coefficients and show 1.0*b as b where the coefficient is exactly 1."""
+    import sympy as sp
+
+    return sp.Add(*[t for t in sp.Add.make_args(expr) if not (t.is_Number and float(t) == 0.0)])
+
+
+# ------------------------------------------------------------------ Operon
+
+INFIX_FUNCS = ("tanh", "sin", "cos", "exp", "log", "sqrt", "abs", "square")
+
+
+def parse_infix(text: str, symbols: Sequence) -> Any:
+    """Parse an engine's infix model string (variables ``X1..Xd``) into sympy, safely.
+
+    Only numbers, ``X<k>``, known function names and arithmetic are accepted (token check
+    before sympy sees the text); ``^`` is power.
+    """
+    import re
+
+    import sympy as sp
+    from sympy.parsing.sympy_parser import parse_expr, standard_transformations
+
+    from ..curves import first_disallowed_token
+
+    bad = first_disallowed_token(text, lambda name: name in INFIX_FUNCS or re.fullmatch(r"X\d+", name) is not None,
+                                 {"+", "-", "*", "/", "^", "(", ")", "**"})
+    if bad == "":
+        raise ValueError(f"cannot tokenize model {text!r}")
+    if bad is not None:
+        raise ValueError(f"unexpected token {bad!r} in model {text!r}")
+    local = {f"X{i + 1}": s for i, s in enumerate(symbols)}
+    local.update({"tanh": sp.tanh, "sin": sp.sin, "cos": sp.cos, "exp": sp.exp, "log": sp.log,
+                  "sqrt": sp.sqrt, "abs": sp.Abs, "square": lambda a: a**2})
+    return parse_expr(text.replace("^", "**"), local_dict=local,
+                      global_dict={"Integer": sp.Integer, "Float": sp.Float, "Rational": sp.Rational},
+                      transformations=standard_transformations, evaluate=True)
