@@ -12,7 +12,7 @@ from __future__ import annotations
 import importlib
 import logging
 
-__version__ = "0.1.0"
+from ._version import __version__ as __version__
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
