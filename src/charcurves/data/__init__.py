@@ -12,8 +12,11 @@ from ._differentiate import DIFFERENTIATOR_NAMES as DIFFERENTIATOR_NAMES
 from ._differentiate import Differentiator as Differentiator
 from ._differentiate import FiniteDifference as FiniteDifference
 from ._differentiate import Given as Given
+from ._differentiate import KalmanSmoother as KalmanSmoother
 from ._differentiate import SavitzkyGolay as SavitzkyGolay
 from ._differentiate import SmoothingSpline as SmoothingSpline
 from ._differentiate import Spectral as Spectral
+from ._differentiate import TotalVariation as TotalVariation
 from ._differentiate import estimate_derivatives as estimate_derivatives
 from ._differentiate import make_differentiator as make_differentiator
+from ._noise import as_rng as as_rng

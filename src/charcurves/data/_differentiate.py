@@ -59,7 +59,9 @@ from typing import Any
 from .._errors import ConfigError, DataError
 from ._diff_base import _UNIFORM_TOL, Differentiator, Given
 from ._diff_classic import FiniteDifference, SavitzkyGolay, SmoothingSpline
+from ._diff_kalman import KalmanSmoother
 from ._diff_spectral import Spectral
+from ._diff_tv import TotalVariation
 from ._trajectory import Trajectory
 
 __all__ = [
@@ -69,13 +71,17 @@ __all__ = [
     "SmoothingSpline",
     "Spectral",
     "FiniteDifference",
+    "KalmanSmoother",
+    "TotalVariation",
     "make_differentiator",
     "estimate_derivatives",
     "DIFFERENTIATOR_NAMES",
 ]
 
 #: Names accepted by :func:`make_differentiator` (and ``--derivatives`` on the command line).
-DIFFERENTIATOR_NAMES: tuple[str, ...] = ("given", "savgol", "spline", "spectral", "fd")
+DIFFERENTIATOR_NAMES: tuple[str, ...] = (
+    "given", "savgol", "spline", "spectral", "fd", "kalman", "tvr"
+)
 
 _ALIASES = {
     "given": "given",
@@ -93,6 +99,15 @@ _ALIASES = {
     "finite-difference": "fd",
     "finite_difference": "fd",
     "gradient": "fd",
+    "kalman": "kalman",
+    "rts": "kalman",
+    "kalman-smoother": "kalman",
+    "kalman_smoother": "kalman",
+    "tvr": "tvr",
+    "tv": "tvr",
+    "tvrdiff": "tvr",
+    "total-variation": "tvr",
+    "total_variation": "tvr",
 }
 
 # ---------------------------------------------------------------------------------- registry
@@ -102,6 +117,8 @@ _CLASSES: dict[str, type[Differentiator]] = {
     "spline": SmoothingSpline,
     "spectral": Spectral,
     "fd": FiniteDifference,
+    "kalman": KalmanSmoother,
+    "tvr": TotalVariation,
 }
 
 
