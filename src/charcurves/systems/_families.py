@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .._errors import ConfigError, SimulationError
-from ._base import BenchmarkSystem, solver_failed
+from ._base import BenchmarkSystem, sample_times, solver_failed
 
 __all__ = ["VanDerPolDamping", "FirstOrderSystem", "TwoDOF", "corrupt_forces"]
 
@@ -256,9 +256,7 @@ class TwoDOF:
 
         from ..data._trajectory import MultiTrajectory
 
-        times = np.linspace(0.0, float(t_end), int(n_points)) if t_eval is None else np.asarray(t_eval, dtype=float)
-        if times.size < 2 or (np.diff(times) <= 0).any():
-            raise ConfigError("the sample times must be at least 2 strictly increasing values")
+        times = sample_times(t_end, n_points, t_eval)
         p = self
 
         def rhs(t, y):
@@ -286,7 +284,7 @@ class TwoDOF:
 def corrupt_forces(record, snr_db: float, *, seed=None, reference: str = "std"):
     """Gaussian noise on every forcing column of a MultiTrajectory at ``snr_db`` (each relative
     to its own signal), from one seeded generator."""
-    from ..data._noise import _as_rng, add_noise
+    from ..data import add_noise, as_rng
 
-    rng = _as_rng(seed)
+    rng = as_rng(seed)
     return record.replace(forces={k: add_noise(v, snr_db, rng, reference) for k, v in record.forces.items()})
