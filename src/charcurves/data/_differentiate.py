@@ -13,6 +13,10 @@ name           method                                                sampling   
 ``spline``     smoothing spline, smoothing chosen by GCV             any          ~0.4 s/1k
 ``spectral``   FFT derivative with a noise-floor low-pass cutoff     uniform      fast
 ``fd``         second-order central differences (naive baseline)     any          fast
+``kalman``     Kalman/RTS smoother, constant-jerk model, q/r by      any          ~0.3 s/1k
+               maximum likelihood (a degree-7 smoothing spline)
+``tvr``        total variation of x''' (cvxpy), alpha by the         uniform      ~2 s/1k
+               discrepancy principle
 =============  ====================================================  ===========  ==========
 
 ``estimate_derivatives(traj, "auto")`` uses ``given`` when the record carries ``v`` and ``a``,
@@ -37,6 +41,27 @@ Duffing, 30 dB                 0.19 (0.21)  0.14 (0.52)  0.22 (0.25)  0.14 (0.18
 Duffing, 20 dB                 0.49 (0.55)  0.26 (0.40)  0.32 (0.35)  0.24 (0.27)  58
 stick-slip, 30 dB              0.37 (0.40)  0.23 (0.49)  0.32 (0.46)  0.22 (0.23)  41
 =============================  ===========  ===========  ===========  ===========  ======
+
+The same measurement for the Kalman smoother (jerk and acceleration models) and total variation:
+
+=============================  =============  ===========  ===========
+signal                         kalman (jerk)  kalman       tvr
+                                              (accel.)
+=============================  =============  ===========  ===========
+sin 2t + 0.3 cos 5t, clean     2e-9 (2e-3)    2e-6 (5e-3)  0.012 (.013)
+sin 2t + 0.3 cos 5t, σ = 1 %   0.044 (.05)    0.10 (0.11)  0.091 (.10)
+sin 2t + 0.3 cos 5t, σ = 5 %   0.093 (.11)    0.16 (0.17)  0.12 (0.16)
+sin(2π·68 t) at 610.35 Hz      0.053 (.054)   0.13 (0.13)  --
+Duffing, 40 dB                 0.056 (.062)   0.11 (0.11)  0.084 (.11)
+Duffing, 30 dB                 0.11 (0.11)    0.15 (0.15)  0.13 (0.19)
+Duffing, 20 dB                 0.20 (0.25)    0.22 (0.23)  0.27 (0.29)
+stick-slip, 30 dB              0.21 (0.24)    0.22 (0.24)  0.26 (0.28)
+=============================  =============  ===========  ===========
+
+On the paper's records (chaotic, not band-limited) the jerk-model Kalman smoother is the most
+accurate, most of all over the whole record (its ends are the natural spline's, not a periodic
+extension's); on band-limited signals ``spectral`` is. ``docs/differentiators.md`` has the
+benchmark of every differentiator as the start of an equation-error fit.
 
 ``spectral`` is the most accurate on uniformly sampled noisy records (also over the whole record,
 ends included) and takes about a millisecond, which is why ``auto`` picks it; the quintic
