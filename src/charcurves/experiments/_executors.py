@@ -213,7 +213,12 @@ def run_ray(units, settings: RunSettings, num_cpus: int | None, address: str | N
             if sized:
                 raise ConfigError(f"ray_init_kwargs {sized} size a new Ray instance; a cluster ({address!r}) has its "
                                   "own size: drop them, or drop the address to start a private Ray")
-            ray.init(address=address, **kw)
+            try:
+                ray.init(address=address, **kw)
+            except (ConnectionError, ValueError, RuntimeError) as exc:
+                raise ConfigError(f"cannot connect to the Ray cluster at {address!r} ({type(exc).__name__}: "
+                                  f"{str(exc).splitlines()[0] if str(exc) else ''}); check the address (`ray status` "
+                                  "on the head node) or unset RAY_ADDRESS to run here") from None
         else:
             kw.setdefault("include_dashboard", False)
             kw.setdefault("num_cpus", num_cpus or os.cpu_count() or 1)
