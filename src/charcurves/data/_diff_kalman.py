@@ -53,9 +53,10 @@ def _filter(y: np.ndarray, F: np.ndarray, Q1: np.ndarray, lam: np.ndarray, keep:
     """Kalman filter of ``y`` (unit measurement variance) for several ``λ`` at once.
 
     ``F`` and ``Q1`` are the per-step transitions and unit-intensity process covariances
-    (``(n-1, m, m)``); the process covariance of step ``k`` is ``λ Q1[k]``. The initial state is
-    diffuse (``P0 = κ I``, ``κ = 1e6`` on the standardised record) and the first ``m`` innovations
-    are left out of the likelihood, which makes it de Jong's diffuse likelihood as ``κ → ∞``.
+    (``(n-1, m, m)``); the process covariance of step ``k`` is ``λ Q1[k]``. The first sample
+    initialises ``x`` (variance 1), the other states start diffuse (variance ``κ = 1e6`` on the
+    standardised record), and the innovations of samples ``1 .. m-1`` are left out of the
+    likelihood (``n - m`` terms remain): de Jong's diffuse likelihood as ``κ → ∞``.
 
     Returns ``-2 log L`` per ``λ`` with the measurement variance profiled out, that variance's
     estimate ``r̂`` (relative to the unit one assumed) and, with ``keep=True``, the filtered means
@@ -200,6 +201,11 @@ class KalmanSmoother(Differentiator):
         hi = 2 * m * math.log10(math.pi) + 1.0
         grid = np.arange(lo, hi + 0.05, 0.1)
         nll, _, _ = _filter(y, F, Q1, 10.0**grid)
+        if not np.isfinite(nll).any():
+            raise DataError(
+                "the Kalman smoother's likelihood is not finite for any smoothing level on this "
+                "record; pass lam=... explicitly or use --derivatives spline"
+            )
         best = int(np.nanargmin(np.where(np.isfinite(nll), nll, np.nan)))
         fine = grid[best] + np.arange(-0.1, 0.1001, 0.01)
         nll_f, _, _ = _filter(y, F, Q1, 10.0**fine)
