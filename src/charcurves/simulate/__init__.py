@@ -11,3 +11,6 @@ from ._sampled import HOLDS as HOLDS
 from ._sampled import rk4_sampled as rk4_sampled
 from ._sampled import simulate_sampled as simulate_sampled
 from ._sampled import stage_inputs as stage_inputs
+from ._families import SimulationStopped as SimulationStopped
+from ._forward import solver_class as solver_class
+from ._sampled import check_hold as check_hold

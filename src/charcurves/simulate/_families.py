@@ -17,7 +17,7 @@ import numpy as np
 
 from .._errors import ConfigError, SimulationError
 
-__all__ = ["simulate_template_model"]
+__all__ = ["simulate_template_model", "SimulationStopped"]
 
 
 def _orders(template) -> dict[str, int]:
@@ -220,3 +220,7 @@ class _Stop(Exception):
     def __init__(self, status: str, message: str, t: float):
         super().__init__(message)
         self.status, self.message, self.t = status, message, t
+
+
+#: Public name of the stop signal of multi-DOF simulations (caught by selection/'s outer loop).
+SimulationStopped = _Stop

@@ -25,7 +25,8 @@ import numpy as np
 from .._errors import ConfigError
 from ._curve_eval import PreparedCurve, prepare_curve
 
-__all__ = ["SimulationResult", "simulate_model", "sinusoidal_forcing", "prepare_model_curves", "STATUSES"]
+__all__ = ["SimulationResult", "simulate_model", "sinusoidal_forcing", "prepare_model_curves", "STATUSES",
+           "solver_class"]
 
 STATUSES = ("ok", "left_box", "diverged", "timeout", "solver_failed")
 
@@ -76,6 +77,10 @@ def _solver_class(method):
     if not (isinstance(cls, type) and issubclass(cls, si.OdeSolver)):
         raise ConfigError(f"unknown solver method {method!r}; choose one of {', '.join(_SOLVERS)}")
     return cls
+
+
+#: Public name of the solver lookup (for metrics/, which integrates with the same solvers).
+solver_class = _solver_class
 
 
 def prepare_model_curves(model, *, evaluation: str = "auto", jump: str = "auto",

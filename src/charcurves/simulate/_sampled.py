@@ -31,7 +31,7 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ._forward import SimulationResult
 
-__all__ = ["HOLDS", "stage_inputs", "rk4_sampled", "simulate_sampled", "model_acceleration"]
+__all__ = ["HOLDS", "stage_inputs", "rk4_sampled", "simulate_sampled", "model_acceleration", "check_hold"]
 
 #: How the input is reconstructed between its samples.
 HOLDS = ("linear", "zoh", "bandlimited")
@@ -45,6 +45,10 @@ def _check_hold(hold: str, substeps: int) -> None:
         raise ConfigError(f"unknown input hold {hold!r}; choose one of {', '.join(HOLDS)}")
     if not isinstance(substeps, (int, np.integer)) or isinstance(substeps, bool) or substeps < 1:
         raise ConfigError(f"substeps must be a positive integer (RK4 steps per sample), got {substeps!r}")
+
+
+#: Public name of the hold/substeps check (for the output-error objective in fitting/).
+check_hold = _check_hold
 
 
 def _upsample_bandlimited(u: np.ndarray, r: int) -> np.ndarray:
