@@ -200,3 +200,28 @@ def test_sigterm_mid_training_keeps_the_best_model_so_far_and_exits_130(tmp_path
     model = load_model(out / "model")
     assert set(model.curves) == {"f1", "f2"} and np.isfinite(model.curves["f2"](np.linspace(-1, 1, 5))).all()
     assert sorted(p.name for p in out.iterdir()) == ["model", "result.json", "summary.txt", "timing.json"]
+
+
+# ---------------------------------------------------------------------- validate
+def test_validate_reports_a_failed_free_run_with_exit_1_and_writes_standard_json(tmp_path, capsys, record):
+    """Issue 25: "RMSE inf" with exit 0, and bare Infinity in validation.json. A forcing 1e8 times the
+    training one makes the free run diverge: exit 1 (the command worked, the verdict is a failure), one
+    stderr line, and standard JSON with null for the non-finite numbers and status "failed"."""
+    train = _write(tmp_path / "d.csv", record)
+    assert main(["fit", train, "--out", str(tmp_path / "fit"), "--method", "parametric", "--basis",
+                 "f1=z; f2=z, z**3", "--no-figure", "--quiet"]) == 0
+    forced = _write(tmp_path / "big.csv", {**record, "F": 1e8 * record["F"]})
+    capsys.readouterr()
+    code = main(["validate", str(tmp_path / "fit" / "model"), forced, "--out", str(tmp_path / "v")])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert err == ("charcurves: validation failed: the free run of rows 0:1000 did not finish with a finite RMSE "
+                   "(see the status above and in validation.json); the model does not reproduce the record\n")
+    text = (tmp_path / "v" / "validation.json").read_text()
+    doc = json.loads(text, parse_constant=lambda c: pytest.fail(f"non-standard JSON constant {c}"))
+    assert doc["status"] == "failed" and doc["segments"][0]["status"] == "diverged"
+    assert doc["segments"][0]["rmse"] is None and "segments[0].rmse" in doc["non_finite"]
+    # the same model on its own record: exit 0, status ok
+    assert main(["validate", str(tmp_path / "fit" / "model"), train, "--rows", "0:500", "--out",
+                 str(tmp_path / "ok")]) == 0
+    assert json.loads((tmp_path / "ok" / "validation.json").read_text())["status"] == "ok"

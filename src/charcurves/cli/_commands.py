@@ -43,14 +43,66 @@ def cmd_select(a) -> int:
 
 
 def cmd_validate(a) -> int:
+    """Free runs of a saved model; exit 0 when every span's free run finished with a finite RMSE, else
+    1 with one line on stderr: the command worked and its verdict is a failure (2 stays "fix the
+    command", 130 "interrupted"), so scripts and CI can tell a model that fails from a typo."""
     from ..fitting._output_error import validate_cli
     from ._fit import time_column
 
-    for line in validate_cli(a.model, a.csv, rows=a.rows, time_col=time_column(a.time_col), x_col=a.x_col,
-                             force_col=a.force_col, sample_rate=a.sample_rate, hold=a.hold, substeps=a.substeps,
-                             out_dir=a.out):
+    out = validate_cli(a.model, a.csv, rows=a.rows, time_col=time_column(a.time_col), x_col=a.x_col,
+                       force_col=a.force_col, sample_rate=a.sample_rate, hold=a.hold, substeps=a.substeps,
+                       out_dir=a.out)
+    lines = list(out[0] if isinstance(out, tuple) else out)
+    for line in lines:
         say(line)
+    failed = _failed_spans(lines)
+    if a.out is not None:
+        _standard_validation_json(os.path.join(a.out, "validation.json"))
+    if failed:
+        print(f"charcurves: validation failed: the free run of rows {', '.join(failed)} did not finish with a finite "
+              "RMSE (see the status above and in validation.json); the model does not reproduce the record",
+              file=sys.stderr, flush=True)
+        return 1
     return 0
+
+
+def _failed_spans(lines: list[str]) -> list[str]:
+    """Row spans whose free run failed, from validate's segment lines ("  rows A:B: STATUS, RMSE x ...")."""
+    import math
+    import re
+
+    failed = []
+    for line in lines:
+        m = re.match(r"^\s+rows (\d+:\d+): (\w+), RMSE (\S+?)[,\s]", line + " ")
+        if m and (m.group(2) != "ok" or not math.isfinite(float(m.group(3)))):
+            failed.append(m.group(1))
+    return failed
+
+
+def _standard_validation_json(path: str) -> None:
+    """validation.json as standard JSON: non-finite numbers as null, a top-level ``status`` ("ok" or
+    "failed") and each segment's ``status``; rewritten only when it is not so already."""
+    import json
+
+    from ..io import atomic_write_bytes, json_bytes, non_finite_paths
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            doc = json.load(fh)  # Python's reader takes the bare Infinity/NaN that json.dumps writes
+    except (OSError, ValueError):
+        return
+    if not isinstance(doc, dict):
+        return
+    segments = doc.get("segments") or []
+    bad = non_finite_paths(doc)
+    failed = bad or any(isinstance(s, dict) and s.get("status") != "ok" for s in segments)
+    status = "failed" if failed else "ok"
+    if not bad and doc.get("status") == status:
+        return
+    doc["status"] = status
+    if bad:
+        doc["non_finite"] = bad
+    atomic_write_bytes(path, json_bytes(doc))
 
 
 def ray_address(a) -> str | None:
