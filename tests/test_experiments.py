@@ -12,6 +12,7 @@ import time
 import numpy as np
 import pytest
 
+from charcurves._errors import ConfigError
 from charcurves.curves import SymbolicFittedCurve
 from charcurves.data import corrupt
 from charcurves.experiments import (
@@ -108,6 +109,27 @@ def test_sweep_validates_its_definition():
         Sweep(options={"random_state": 3})
     with pytest.raises(ConfigError, match="unknown system"):
         Sweep(systems=["pendulum"])
+
+
+def test_base_seed_is_bounded_to_32_bits():
+    assert Sweep(methods=["parametric"], base_seed=2**32 - 1).jobs()[0].noise_seed >= 0
+    for bad in (2**32, -1, 99999999999999999999, 1.5, True):
+        with pytest.raises(ConfigError, match=r"base_seed must be an integer from 0 to 4294967295 \(32 bits"):
+            Sweep(methods=["parametric"], base_seed=bad)
+
+
+def test_a_cluster_address_refuses_ray_init_sizes(tmp_path, monkeypatch):
+    pytest.importorskip("ray")
+    from charcurves.experiments._executors import ray_address
+
+    monkeypatch.setenv("RAY_ADDRESS", "ray://head:10001")
+    assert ray_address(None) == "ray://head:10001" and ray_address("auto") == "auto"
+    with pytest.raises(ConfigError, match=r"ray_init_kwargs \['num_cpus'\] size a new Ray instance; a cluster "
+                                          r"\('ray://head:10001'\) has its own size"):
+        run_sweep(_tiny_sweep(), tmp_path / "r.sqlite", executor="ray", progress=False,
+                  ray_init_kwargs={"num_cpus": 2})
+    monkeypatch.setenv("RAY_ADDRESS", "")
+    assert ray_address(None) is None
 
 
 def test_neural_jobs_are_batched_per_level_and_others_run_alone():
