@@ -218,7 +218,41 @@ NUMBERS = [
         ConfigError, est_kw=None),
 ]
 
+RECORDS = [  # issue 25: conflicting or impossible record options, huge values
+    Bad("seed-beyond-32-bits", "base", ("--seed", "99999999999999999999"),
+        ("--seed must be a non-negative integer of at most 32 bits", "4294967295", "got 99999999999999999999",
+         "--seed 0"), ConfigError, est_kw=None),
+    Bad("seed-just-beyond-32-bits", "base", ("--seed", str(2**32)), ("at most 32 bits", "got 4294967296"),
+        ConfigError, est_kw=None),
+    Bad("sample-rate-with-a-time-column", "base", ("--sample-rate", "100"),
+        ("the file has a time column 't'", "drop --sample-rate", "--time-col none"), csv_kw={"sample_rate": 100.0}),
+    Bad("time-col-none-without-sample-rate", "base", ("--time-col", "none"),
+        ("--time-col none", "give --sample-rate hz"), csv_kw={"time_col": None}),
+    Bad("same-column-for-x-and-force", "base", ("--force-col", "x"),
+        ("x and f are both read from column 'x'", "--force-col"), csv_kw={"force_col": "x"}),
+    Bad("rows-beyond-the-file", "base", ("--rows", "900:5000"),
+        ("rows 900:5000 go beyond the file, which has 1000 rows", "within 0:1000"), csv_kw={"rows": slice(900, 5000)}),
+    Bad("rows-start-beyond-the-file", "base", ("--rows", "2000:"), ("rows 2000: go beyond", "has 1000 rows"),
+        csv_kw={"rows": slice(2000, None)}),
+    Bad("two-dof-rows-beyond-the-file", "two", (*("--family", "two-dof"), "--rows", "0:99999"),
+        ("rows 0:99999 go beyond the file, which has 1500 rows",), csv_kw={"rows": slice(0, 99999)},
+        est_kw={"family": "two-dof"}, multi=True),
+    Bad("values-near-1e307", "huge", (), ("column 'x' has the value 4.00293e+305 at row 1", "beyond the 1e+100",
+                                          "rescale the column")),
+    Bad("huge-time-stamps", "huge_t", (), ("column 't' has the value", "rescale the column")),
+]
+
 SIMULATE = [
+    Bad("simulate-too-many-points", "", ("duffing", "--n-points", "2000000000"),
+        ("n_points (--n-points) 2000000000 is more than the 2,000,000 samples", "give at most 2000000"), est_kw=None,
+        command="simulate"),
+    Bad("simulate-two-dof-too-many-points", "", ("two-dof", "--n-points", "2000001"),
+        ("n_points (--n-points) 2000001", "give at most 2000000"), est_kw=None, command="simulate"),
+    Bad("simulate-endless-time", "", ("duffing", "--t-end", "1e12"),
+        ("t_end (--t-end) 1e+12 is longer than the 100000 time units", "give a shorter t_end"), est_kw=None,
+        command="simulate"),
+    Bad("simulate-seed-beyond-32-bits", "", ("duffing", "--snr", "20", "--seed", "99999999999999999999"),
+        ("--seed must be a non-negative integer of at most 32 bits",), est_kw=None, command="simulate"),
     Bad("simulate-unknown-system", "", ("triple-pendulum",), ("invalid choice: 'triple-pendulum'",), est_kw=None,
         command="simulate"),
     Bad("simulate-one-point", "", ("duffing", "--n-points", "1"), ("n_points must be an integer >= 2",), est_kw=None,
@@ -376,7 +410,7 @@ EQUATIONS = [
 ]
 
 MATRIX = (NONFINITE + FILES + COLUMNS + TIME + SHORT + IDENTIFIABILITY + NAMES + TEMPLATES + FAMILIES + TWO_DOF
-          + EQUATIONS + NUMBERS + SIMULATE)
+          + EQUATIONS + NUMBERS + RECORDS + SIMULATE)
 API_ROWS = [b for b in MATRIX if b.est_kw is not None and b.csv_kw is not None and b.command == "fit"]
 
 
@@ -472,6 +506,8 @@ def files(tmp_path_factory):
     f2_nan[7] = np.nan
     two_dof("two_nan_F2", F2=f2_nan)
     two_dof("two_no_derivatives", v1=None, a1=None, v2=None, a2=None)
+    out["huge"] = _write(d / "huge.csv", {"t": t, "x": 1e307 * np.sin(t), "F": 1e307 * F})
+    out["huge_t"] = _write(d / "huge_t.csv", {"t": t * 1e305, "x": x, "F": F})
     (d / "a_file").write_text("not a directory")
     out["{file}"], out["{dir}"] = str(d / "a_file"), str(d / "adir")
     return out
@@ -576,6 +612,37 @@ def test_real_process_exit_code_and_stderr(row_id, files, tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("charcurves: error: "), r.stderr
     assert all(n.lower() in lines[0].lower() for n in bad.needles), r.stderr
+
+
+# ---------------------------------------------------------------------- seeds and clusters, every command
+def _command_argv(command: str, files, out_dir, *extra) -> list[str]:
+    return {"fit": ["fit", files["base"], "--out", str(out_dir), "--no-figure", "--quiet"],
+            "simulate": ["simulate", "duffing", "--out", str(out_dir / "sim.csv")],
+            "demo": ["demo", "--out", str(out_dir)],
+            "select": ["select", files["base"], "--out", str(out_dir), "--quiet"],
+            "benchmark": ["benchmark", "--out", str(out_dir), "--quiet"]}[command] + list(extra)
+
+
+@pytest.mark.parametrize("seed", ["99999999999999999999", str(2**32), "-1"])
+@pytest.mark.parametrize("command", ["fit", "simulate", "demo", "select", "benchmark"])
+def test_every_command_bounds_its_seed_before_any_work(command, seed, files, tmp_path, capsys):
+    out_dir = tmp_path / "out"
+    code = main(_command_argv(command, files, out_dir, "--seed", seed))
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.count("\n") == 1 and err.startswith("charcurves: error: --seed must be a non-negative integer of at "
+                                                    f"most 32 bits (0 ... 4294967295, "), err
+    assert f"got {seed}; e.g. --seed 0" in err
+    assert not out_dir.exists()
+
+
+def test_benchmark_address_with_a_local_executor_is_refused(tmp_path, capsys):
+    out_dir = tmp_path / "b"
+    code = main(["benchmark", "--out", str(out_dir), "--executor", "local", "--address", "ray://head:10001"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "--address names a ray cluster but --executor is local; drop --executor local" in err.lower()
+    assert not out_dir.exists()
 
 
 # ---------------------------------------------------------------------- fuzzing

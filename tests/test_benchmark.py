@@ -236,10 +236,11 @@ def test_report_renders_markdown_and_self_contained_html():
 
 def test_miw_and_sensitivity_side_studies_on_a_tiny_nn_cc_run(tmp_path, monkeypatch):
     from charcurves.experiments import _benchmark as bm
+    from charcurves.experiments import _side_studies
 
     monkeypatch.setitem(bm.QUICK, "miw_seeds", 2)
     monkeypatch.setitem(bm.QUICK, "miw_realizations", 2)
-    monkeypatch.setattr(bm, "SENSITIVITY_VARIATIONS", (("activation", "softplus"), ("width", 4)))
+    monkeypatch.setattr(_side_studies, "SENSITIVITY_VARIATIONS", (("activation", "softplus"), ("width", 4)))
     res = bm.run_benchmark(tmp_path, systems=["duffing"], methods=["nn-cc"], snr_db=[20], realizations=1,
                            skip=("forward", "lyapunov", "appendix-f"), progress=False)
     assert res.n_jobs == 1 and res.n_failed == 0

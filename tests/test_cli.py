@@ -175,6 +175,18 @@ SYMBOLIC = {"nn-cc+post-sr", "nn-cc+sym+post-sr", "poly-cc", "sindy", "sindy-cc"
             "sindy-cc+sym+post-sr", "sr", "sr-cc", "parametric"}
 
 
+#: (f1, f2) curve-RMSE bounds of each method on the 30 dB Duffing record of `duffing_csv`. Measured
+#: (issue 25; worst of noise seeds 1, 2, 3 x fit seeds 0, 1; --sr-generations 20), f1 / f2:
+#: nn-cc 1.28e-3 / 1.43e-3, nn-cc+post-sr 1.28e-3 / 8.1e-4, nn-cc+sym 1.0e-4 / 8.8e-4,
+#: nn-cc+sym+post-sr 1.0e-4 / 7.6e-4, poly-cc 1.95e-3 / 1.60e-3, sindy 1.36e-3 / 1.39e-3 (gain 0.9958),
+#: sindy-cc 1.33e-3 / 1.39e-3, sindy-cc+sym 7.0e-4 / 8.3e-4, sindy-cc+sym+post-sr 1.9e-4 / 5.6e-4,
+#: sr 1.0e-4 / 6.2e-4, sr-cc and parametric 1.2e-4 / 7.2e-4. The bounds are about twice those.
+BOUNDS = {"nn-cc": (3e-3, 3e-3), "nn-cc+post-sr": (3e-3, 1.6e-3), "nn-cc+sym": (2e-4, 1.8e-3),
+          "nn-cc+sym+post-sr": (2e-4, 1.5e-3), "poly-cc": (4e-3, 3.2e-3), "sindy": (2.8e-3, 2.8e-3),
+          "sindy-cc": (2.7e-3, 2.8e-3), "sindy-cc+sym": (1.4e-3, 1.7e-3), "sindy-cc+sym+post-sr": (4e-4, 1.1e-3),
+          "sr": (2e-4, 1.3e-3), "sr-cc": (2.4e-4, 1.5e-3), "parametric": (2.4e-4, 1.5e-3)}
+
+
 @pytest.fixture(scope="module")
 def duffing_csv(tmp_path_factory):
     path = tmp_path_factory.mktemp("all") / "d.csv"
@@ -202,6 +214,8 @@ def test_every_method_runs_through_the_cli(tmp_path, duffing_csv, method):
                                curve["values"], atol=1e-8)
         else:
             assert curve["expression"] is None
-    # every method identifies this 30 dB record; the SINDy family's degree-10 libraries are the loosest
-    assert res["curve_rmse"]["f1"] < 2e-2 and res["curve_rmse"]["f2"] < 2e-2, res["curve_rmse"]
-    assert res["gain"] == pytest.approx(1.0, abs=0.02 if method == "sindy" else 1e-12)
+    # every method identifies this 30 dB record, each to its own accuracy (BOUNDS: about twice the worst
+    # RMSE measured over noise seeds 1-3 x fit seeds 0-1; a wrong model is off by 1e-2 and more)
+    f1_bound, f2_bound = BOUNDS[method]
+    assert res["curve_rmse"]["f1"] < f1_bound and res["curve_rmse"]["f2"] < f2_bound, res["curve_rmse"]
+    assert res["gain"] == pytest.approx(1.0, abs=0.01 if method == "sindy" else 1e-12)

@@ -103,3 +103,25 @@ def test_separate_processes_with_different_hash_seeds_agree(csv, tmp_path):
         assert r.returncode == 0, r.stderr
         outputs.append((out / "result.json").read_bytes())
     assert outputs[0] == outputs[1]
+
+
+def test_two_processes_give_byte_identical_result_json_for_nn_cc_sym(csv, tmp_path):
+    """Issue 25, fast tier: two fresh `charcurves fit --method nn-cc+sym` processes on the same CSV write
+    the same result.json bytes (and model arrays).
+
+    The last-bit differences seen before (in 1 of 21 process pairs, and in about 1 of 8 in-process
+    reruns) came from torch.linalg.lstsq's default CPU driver, gelsy: PyTorch hands LAPACK an
+    uninitialised pivot array (jpvt), which ?gelsy reads on entry, so the column pivoting of the
+    networks' warm start followed leftover heap contents. With the trainer's least squares on a
+    deterministic driver (gelsd) this test cannot fail by chance; until that change lands in
+    fitting/_neural_fit.py it fails now and then (see the issue-25 report)."""
+    outputs = []
+    for i in (1, 2):
+        out = tmp_path / f"p{i}"
+        env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONHASHSEED=str(i))
+        r = subprocess.run([sys.executable, "-m", "charcurves", "fit", str(csv), "--method", "nn-cc+sym", "--out",
+                            str(out), *FAST], capture_output=True, text=True, env=env, timeout=300)
+        assert r.returncode == 0, r.stderr
+        outputs.append(((out / "result.json").read_bytes(), (out / "model" / "arrays.safetensors").read_bytes()))
+    assert outputs[0][0] == outputs[1][0], _first_difference(json.loads(outputs[0][0]), json.loads(outputs[1][0]))
+    assert outputs[0][1] == outputs[1][1]

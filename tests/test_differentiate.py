@@ -233,7 +233,7 @@ def test_spline_with_fixed_lam_smooths_more(noisy):
 
 # ------------------------------------------------------------------ registry
 def test_registry_names_and_params():
-    assert DIFFERENTIATOR_NAMES == ("given", "savgol", "spline", "spectral", "fd")
+    assert DIFFERENTIATOR_NAMES == ("given", "savgol", "spline", "spectral", "fd", "kalman", "tvr")
     assert isinstance(make_differentiator("savgol", window=51), SavitzkyGolay)
     assert make_differentiator("savgol", window=51).get_params() == {
         "window": 51, "order": 3, "mode": "interp"
@@ -254,9 +254,9 @@ def test_registry_names_and_params():
 
 
 def test_registry_errors():
-    valid = "given, savgol, spline, spectral, fd"
-    with pytest.raises(ConfigError, match=rf"unknown differentiator 'tvr'.*{valid}"):
-        make_differentiator("tvr")
+    valid = "given, savgol, spline, spectral, fd, kalman, tvr"
+    with pytest.raises(ConfigError, match=rf"unknown differentiator 'wavelet'.*{valid}"):
+        make_differentiator("wavelet")
     with pytest.raises(ConfigError, match=r"no parameter 'windw'.*window, order, mode"):
         make_differentiator("savgol", windw=5)
     with pytest.raises(ConfigError, match="takes no parameters"):

@@ -2,7 +2,6 @@
 
 import math
 import os
-import random
 import signal
 import sqlite3
 import subprocess
@@ -13,6 +12,7 @@ import time
 import numpy as np
 import pytest
 
+from charcurves._errors import ConfigError
 from charcurves.curves import SymbolicFittedCurve
 from charcurves.data import corrupt
 from charcurves.experiments import (
@@ -109,6 +109,27 @@ def test_sweep_validates_its_definition():
         Sweep(options={"random_state": 3})
     with pytest.raises(ConfigError, match="unknown system"):
         Sweep(systems=["pendulum"])
+
+
+def test_base_seed_is_bounded_to_32_bits():
+    assert Sweep(methods=["parametric"], base_seed=2**32 - 1).jobs()[0].noise_seed >= 0
+    for bad in (2**32, -1, 99999999999999999999, 1.5, True):
+        with pytest.raises(ConfigError, match=r"base_seed must be an integer from 0 to 4294967295 \(32 bits"):
+            Sweep(methods=["parametric"], base_seed=bad)
+
+
+def test_a_cluster_address_refuses_ray_init_sizes(tmp_path, monkeypatch):
+    pytest.importorskip("ray")
+    from charcurves.experiments._executors import ray_address
+
+    monkeypatch.setenv("RAY_ADDRESS", "ray://head:10001")
+    assert ray_address(None) == "ray://head:10001" and ray_address("auto") == "auto"
+    with pytest.raises(ConfigError, match=r"ray_init_kwargs \['num_cpus'\] size a new Ray instance; a cluster "
+                                          r"\('ray://head:10001'\) has its own size"):
+        run_sweep(_tiny_sweep(), tmp_path / "r.sqlite", executor="ray", progress=False,
+                  ray_init_kwargs={"num_cpus": 2})
+    monkeypatch.setenv("RAY_ADDRESS", "")
+    assert ray_address(None) is None
 
 
 def test_neural_jobs_are_batched_per_level_and_others_run_alone():
@@ -234,54 +255,70 @@ def test_batched_neural_jobs_match_separate_fits(tmp_path):
 
 
 _KILL_SCRIPT = textwrap.dedent("""
-    import sys
+    import os, signal, sys
     from charcurves.experiments import Sweep, run_sweep
-    sweep = Sweep(systems=["duffing"], methods=["parametric"], snr_db=[40, 30, 20, 10, 0, -10], realizations=3)
-    run_sweep(sweep, sys.argv[1], workers=1, progress=False, forward_cases=1)
+    from charcurves.experiments import _store, _sweep
+
+    path, moment, k = sys.argv[1], sys.argv[2], int(sys.argv[3])
+    stored = [0]
+
+    def kill():
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    if moment == "mid-job":  # unit k + 1 has computed its row; the process dies before returning it
+        real_run_unit = _sweep.run_unit
+        def run_unit(unit, settings):
+            rows = real_run_unit(unit, settings)
+            if stored[0] == k:
+                kill()
+            return rows
+        _sweep.run_unit = run_unit
+    if moment == "mid-transaction":  # row k + 1 is inserted but not committed
+        class Connection:
+            def __init__(self, con):
+                self._con = con
+            def execute(self, sql, *args):
+                if sql == "COMMIT" and stored[0] == k:
+                    kill()
+                return self._con.execute(sql, *args)
+            def __getattr__(self, name):
+                return getattr(self._con, name)
+        real_init = _store.ResultsStore.__init__
+        def init(self, *args, **kwargs):
+            real_init(self, *args, **kwargs)
+            self._con = Connection(self._con)
+        _store.ResultsStore.__init__ = init
+
+    def on_row(row):
+        stored[0] += 1
+        if moment == "after-commit" and stored[0] == k:
+            kill()
+
+    sweep = Sweep(systems=["duffing"], methods=["parametric"], snr_db=[40, 30, 20, 10, 0, -10], realizations=2)
+    run_sweep(sweep, path, workers=1, progress=False, on_row=on_row if moment != "none" else None)
 """)
+KILL_AFTER = 5  # rows stored before the kill; the sweep has 12 jobs
 
 
-def test_sigkill_at_a_random_moment_loses_nothing_and_duplicates_nothing(tmp_path):
+@pytest.mark.parametrize("moment", ["after-commit", "mid-transaction", "mid-job"])
+def test_sigkill_loses_nothing_and_duplicates_nothing(tmp_path, moment):
+    """SIGKILL (no handler runs) at a moment the test controls, with 7 of 12 jobs still to do: right after
+    row 5 is committed, inside the transaction of row 6 (inserted, not committed), or while job 6 has
+    its result but before it is stored. Exactly 5 rows survive, none twice; a rerun runs the other 7."""
     path = str(tmp_path / "r.sqlite")
     script = tmp_path / "sweep.py"
     script.write_text(_KILL_SCRIPT)
     env = dict(os.environ, OMP_NUM_THREADS="1")
-    proc = subprocess.Popen([sys.executable, str(script), path], env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, start_new_session=True)
-    try:
-        deadline = time.monotonic() + 120
-        n = 0
-        while time.monotonic() < deadline and proc.poll() is None:
-            if os.path.exists(path):
-                try:
-                    con = sqlite3.connect(path, timeout=5)
-                    n = con.execute("SELECT COUNT(*) FROM results").fetchone()[0]
-                    con.close()
-                except sqlite3.OperationalError:
-                    n = 0
-                if n >= 1:
-                    break
-            time.sleep(0.05)
-        err = proc.stderr.read().decode()[-2000:] if proc.poll() is not None else ""
-        assert n >= 1, f"the sweep wrote no row in time: {err}"
-        time.sleep(random.uniform(0.0, 1.5))
-        proc.send_signal(signal.SIGKILL)
-        proc.wait(timeout=30)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=30)
-    assert proc.returncode == -signal.SIGKILL
+    proc = subprocess.run([sys.executable, str(script), path, moment, str(KILL_AFTER)], env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr[-2000:]
     with ResultsStore(path) as st:  # opening recovers the WAL
-        n_killed = len(st)
-        assert all(r["status"] == "ok" for r in st.rows())
-    assert count_per_key(path)[1] == 1
-    sweep = Sweep(systems=["duffing"], methods=["parametric"], snr_db=[40, 30, 20, 10, 0, -10], realizations=3)
-    rep = run_sweep(sweep, path, workers=1, progress=False, forward_cases=1)
-    assert rep.n_skipped == n_killed and rep.n_run == 18 - n_killed
-    assert count_per_key(path) == (18, 1)
-    with ResultsStore(path) as st:
-        assert len(st) == 18 and st.count("ok") == 18
+        assert len(st) == KILL_AFTER and st.count("ok") == KILL_AFTER
+    assert count_per_key(path) == (KILL_AFTER, 1)
+    sweep = Sweep(systems=["duffing"], methods=["parametric"], snr_db=[40, 30, 20, 10, 0, -10], realizations=2)
+    rep = run_sweep(sweep, path, workers=1, progress=False)
+    assert (rep.n_skipped, rep.n_run, rep.n_ok) == (KILL_AFTER, 12 - KILL_AFTER, 12 - KILL_AFTER)
+    assert count_per_key(path) == (12, 1)
 
 
 # ---------------------------------------------------------------------------- forward validation

@@ -170,9 +170,14 @@ def test_sample_rate_without_time_column():
     assert tr.t[0] == 0.0
     assert tr.dt == pytest.approx(1 / rate, rel=1e-12)
     assert tr.duration == pytest.approx((n - 1) / rate, rel=1e-12)
-    # sample_rate wins over an existing time column
-    tr2 = Trajectory.from_dataframe({"t": np.arange(n) * 7.0, "x": x, "F": x}, sample_rate=rate)
+    # a file with a time column and a sample rate: the conflict is refused (issue 25: it silently
+    # replaced t); time_col=None (--time-col none) ignores the column
+    with pytest.raises(DataError, match="the file has a time column 't' and a sample rate was given too; drop "
+                                        "--sample-rate to use the file's times, or pass --time-col none"):
+        Trajectory.from_dataframe({"t": np.arange(n) * 7.0, "x": x, "F": -x}, sample_rate=rate)
+    tr2 = Trajectory.from_dataframe({"t": np.arange(n) * 7.0, "x": x, "F": -x}, sample_rate=rate, time_col=None)
     assert tr2.dt == pytest.approx(1 / rate, rel=1e-12)
+    assert Trajectory.from_dataframe({"t": np.arange(n) * 7.0, "x": x, "F": -x}).dt == 7.0
 
 
 def test_rows_selection_keeps_row_numbering_of_the_full_record():
@@ -218,7 +223,7 @@ def test_csv_round_trip_is_bit_exact(tmp_path, with_derivatives):
     t = np.cumsum(rng.uniform(1e-3, 2e-3, n)) + np.pi
     vals = [rng.standard_normal(n) * 10.0 ** rng.integers(-12, 12, n) for _ in range(4)]
     vals[0][3] = 5e-324  # subnormal
-    vals[1][4] = -1.7976931348623157e308
+    vals[1][4] = -1e100  # the largest magnitude a Trajectory takes (MAX_MAGNITUDE)
     v, a = (vals[2], vals[3]) if with_derivatives else (None, None)
     tr = Trajectory(t=t, x=vals[0], F=vals[1], v=v, a=a)
     path = tmp_path / "sub" / "rt.csv"  # directory created by the writer
@@ -235,6 +240,63 @@ def test_csv_round_trip_is_bit_exact(tmp_path, with_derivatives):
     assert back.has_derivatives == with_derivatives
     # the atomic writer leaves no temporary files behind
     assert sorted(os.listdir(path.parent)) == ["rt.csv"]
+
+
+def test_csv_layer_round_trips_the_extremes_of_float64_bit_exactly(tmp_path):
+    from charcurves.io import read_csv_columns, write_csv_columns
+
+    cols = {"t": np.array([0.0, 1.0, 2.0]), "x": np.array([5e-324, -1.7976931348623157e308, 1e307])}
+    write_csv_columns(tmp_path / "e.csv", cols)
+    back = read_csv_columns(tmp_path / "e.csv")
+    assert all(np.array_equal(cols[k].view(np.int64), back[k].view(np.int64)) for k in cols)
+
+
+def test_values_beyond_max_magnitude_are_refused_by_name_not_as_nan(tmp_path):
+    """Issue 25: x near 1e307 (finite) ended in "column 'x' has a NaN value at row 0" from the
+    differentiator's overflow; the record is refused up front, naming the value and the fix."""
+    from charcurves.data._trajectory import MAX_MAGNITUDE
+
+    t = np.linspace(0, 10, 50)
+    Trajectory(t=t, x=MAX_MAGNITUDE * np.sin(t), F=np.cos(t))  # the bound itself is accepted
+    with pytest.raises(DataError) as info:
+        Trajectory(t=t, x=1e307 * np.sin(t + 0.5), F=np.cos(t))
+    assert str(info.value) == ("column 'x' has the value 4.79426e+306 at row 0, beyond the 1e+100 in magnitude "
+                               "that charcurves computes with (its squares and cubes would overflow); rescale the "
+                               "column, e.g. change its units")
+
+
+def test_rows_beyond_the_file_and_the_same_column_twice_are_refused():
+    cols = {"t": np.arange(100.0), "x": np.sin(np.arange(100.0)), "F": np.cos(np.arange(100.0))}
+    with pytest.raises(DataError, match=r"^rows 90:500 go beyond the file, which has 100 rows; choose START:STOP "
+                                        r"within 0:100$"):
+        Trajectory.from_dataframe(cols, rows=slice(90, 500))
+    assert Trajectory.from_dataframe(cols, rows=slice(90, 100)).n_samples == 10
+    assert Trajectory.from_dataframe(cols, rows=slice(-10, None)).n_samples == 10
+    with pytest.raises(DataError, match="x and F are both read from column 'x'; name the forcing with --force-col"):
+        Trajectory.from_dataframe(cols, force_col="x")
+
+
+def test_quality_warnings_flag_gaps_noise_and_a_zero_forcing_only():
+    from charcurves.systems import get_system
+
+    tr = get_system("duffing").simulate()
+    assert tr.quality_warnings() == []
+    t = np.array(tr.t)
+    t[300:] += 9 * tr.dt  # a step of 10 median steps: not yet a gap
+    assert tr.replace(t=t).quality_warnings() == []
+    t[300:] += 1.1 * tr.dt
+    (gap,) = tr.replace(t=t).quality_warnings()
+    assert gap.startswith("the time step at row 300 is 11.1 times the median step")
+    rng = np.random.default_rng(3)
+    (noise,) = tr.replace(x=rng.normal(size=tr.n_samples)).quality_warnings()
+    assert noise.startswith("x looks like white noise (lag-1 autocorrelation -0.0") or \
+        noise.startswith("x looks like white noise (lag-1 autocorrelation 0.0")
+    from charcurves.data import corrupt
+
+    assert corrupt(tr, 0.0, on="state", seed=1).quality_warnings() == []  # noisy but a motion: no warning
+    assert corrupt(tr, -10.0, on="state", seed=1).quality_warnings()[0].startswith("x looks like white noise")
+    assert tr.replace(F=0 * tr.F).quality_warnings()[0].startswith("the forcing F is zero everywhere")
+    assert tr.replace(F=tr.x).quality_warnings() == ["x and F hold identical values; check --x-col and --force-col"]
 
 
 def test_csv_column_mapping_and_rows(tmp_path):

@@ -12,7 +12,9 @@ from __future__ import annotations
 import importlib
 import logging
 
-__version__ = "0.1.0"
+from ._version import VERSION
+
+__version__ = VERSION
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
@@ -28,7 +30,7 @@ _LAZY = {
     "SavitzkyGolay": "charcurves.data",
     "Spectral": "charcurves.data",
     "SmoothingSpline": "charcurves.data",
-    "Spline": ("charcurves.data", "SmoothingSpline"),
+    "Spline": "charcurves.data",
     "FiniteDifference": "charcurves.data",
     "Given": "charcurves.data",
     "get_system": "charcurves.systems",

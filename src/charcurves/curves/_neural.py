@@ -106,7 +106,11 @@ class NeuralCurve:
     # ------------------------------------------------------------------ layout
     @property
     def mlp(self) -> BatchedMLP:
-        return BatchedMLP(self.hidden, self.activation)
+        cached = self.__dict__.get("_mlp")
+        if cached is None:
+            cached = BatchedMLP(self.hidden, self.activation)
+            object.__setattr__(self, "_mlp", cached)  # a layout only: safe to share
+        return cached
 
     @property
     def exact_symmetry(self) -> str:

@@ -108,6 +108,8 @@ class SparseLibrary(LinearCurve):
     alpha, nu, tol, max_iter
         STLSQ ridge, SR3 relaxation, tolerance and iterations.
 
+    Notes
+    -----
     All SparseLibrary curves of one fit share one sparse regression; their optimizer settings
     must agree.
     """
@@ -300,6 +302,8 @@ class Symbolic(AbstractCurve):
         Search all curves of the template as one bivariate expression and decompose it afterwards
         (the paper's SR, method x) instead of the block-coordinate SR-CC loop.
 
+    Notes
+    -----
     Symbolic curves are found, not trained: every curve of a fit must then be Symbolic.
     """
 

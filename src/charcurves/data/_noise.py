@@ -17,7 +17,7 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ._trajectory import Trajectory
 
-__all__ = ["snr_to_eta", "noise_sigma", "add_noise", "corrupt", "NOISE_TARGETS", "NOISE_REFERENCES"]
+__all__ = ["snr_to_eta", "noise_sigma", "add_noise", "corrupt", "as_rng", "NOISE_TARGETS", "NOISE_REFERENCES"]
 
 #: Signals :func:`corrupt` can put noise on.
 NOISE_TARGETS = ("force", "state")
@@ -62,6 +62,7 @@ def _as_signal(clean: Any) -> np.ndarray:
 
 
 def as_rng(rng: Any) -> np.random.Generator:
+    """A numpy Generator from a Generator, a non-negative integer seed or None (ConfigError otherwise)."""
     if isinstance(rng, np.random.Generator):
         return rng
     if rng is None or (isinstance(rng, numbers.Integral) and not isinstance(rng, bool)):

@@ -10,11 +10,15 @@ from typing import Any
 import numpy as np
 
 from .._errors import DataError
+from ._quality import check_rows, gap_warnings, signal_warnings
 
-__all__ = ["Trajectory", "MultiTrajectory", "MIN_SAMPLES"]
+__all__ = ["Trajectory", "MultiTrajectory", "MIN_SAMPLES", "MAX_MAGNITUDE"]
 
 #: Fewest samples any fitting method accepts (a degree-10 polynomial per curve needs 22).
 MIN_SAMPLES = 30
+#: Largest magnitude of a recorded value: the fits square and cube the data (losses, variances,
+#: cubic bases), which overflows float64 near 1e103 and above; rescale larger data (change units).
+MAX_MAGNITUDE = 1e100
 
 
 def _as_column(name: str, values: Any, n: int | None) -> np.ndarray:
@@ -42,6 +46,14 @@ def _as_column(name: str, values: Any, n: int | None) -> np.ndarray:
         raise DataError(
             f"column {name!r} has {kind} value at row {row} ({int(bad.sum())} non-finite in all); "
             "remove or interpolate those rows (e.g. --rows to select a clean span)"
+        )
+    big = np.abs(arr) > MAX_MAGNITUDE
+    if big.any():
+        row = int(np.flatnonzero(big)[0])
+        raise DataError(
+            f"column {name!r} has the value {arr[row]:.6g} at row {row}, beyond the {MAX_MAGNITUDE:g} in magnitude "
+            "that charcurves computes with (its squares and cubes would overflow); rescale the column, "
+            "e.g. change its units"
         )
     return arr
 
@@ -84,6 +96,9 @@ class _SampledRecord:
 
     def replace(self, **changes: Any):
         return dataclasses.replace(self, **changes)
+
+    def _gap_warnings(self) -> list[str]:
+        return gap_warnings(self.t)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -178,10 +193,20 @@ class Trajectory(_SampledRecord):
                 )
             return np.asarray(df[col])
 
+        if x_col == force_col:
+            raise DataError(
+                f"x and F are both read from column {x_col!r}; name the forcing with --force-col "
+                "(and the state with --x-col)"
+            )
         x = need(x_col, "x")
         F = need(force_col, "force")
         n_all = len(x)
-        if time_col is not None and time_col in columns and sample_rate is None:
+        if sample_rate is not None and time_col is not None and time_col in columns:
+            raise DataError(
+                f"the file has a time column {time_col!r} and a sample rate was given too; drop --sample-rate "
+                "to use the file's times, or pass --time-col none (time_col=None) to ignore the column"
+            )
+        if time_col is not None and time_col in columns:
             t = need(time_col, "time")
         elif sample_rate is not None:
             try:
@@ -195,7 +220,10 @@ class Trajectory(_SampledRecord):
                 )
             t = np.arange(n_all) / rate
         else:
-            close = _closest_column(str(time_col), columns) if time_col is not None else None
+            if time_col is None:
+                raise DataError("no times: the time column is ignored (--time-col none) and no sample rate was "
+                                "given; give --sample-rate HZ")
+            close = _closest_column(str(time_col), columns)
             hint = f" (did you mean {close!r}?)" if close is not None else ""
             raise DataError(
                 f"no time column {time_col!r}{hint} in {columns}; name it with --time-col "
@@ -204,6 +232,7 @@ class Trajectory(_SampledRecord):
         v = np.asarray(df[v_col]) if v_col and v_col in columns else None
         a = np.asarray(df[a_col]) if a_col and a_col in columns else None
         if rows is not None:
+            check_rows(rows, n_all)
             start, stop, _ = rows.indices(n_all)
             if stop - start < 2:
                 raise DataError(
@@ -250,6 +279,24 @@ class Trajectory(_SampledRecord):
                 "or use --derivatives spline"
             )
 
+
+    def quality_warnings(self) -> list[str]:
+        """One-line warnings about a record that can be fitted but looks suspicious: a gap in the
+        time stamps (a step more than :data:`GAP_FACTOR` times the median), x that looks like white
+        noise (lag-1 autocorrelation below :data:`NOISE_LAG1`), a forcing that is zero everywhere
+        (then the fit describes a free response), or x and F with identical values.
+
+        >>> t = np.linspace(0, 10, 200)
+        >>> Trajectory(t=t, x=np.sin(t), F=np.cos(t)).quality_warnings()
+        []
+        """
+        out = self._gap_warnings() + signal_warnings("x", self.x)
+        if not np.any(self.F):
+            out.append("the forcing F is zero everywhere: the curves then describe a free response "
+                       "(x'' + f1 + f2 = 0); check --force-col if the system was forced")
+        elif np.array_equal(self.x, self.F):
+            out.append("x and F hold identical values; check --x-col and --force-col")
+        return out
 
     def slice(self, rows: slice) -> Trajectory:
         """Rows ``rows`` of the record (derivatives sliced alongside)."""
@@ -362,6 +409,8 @@ class MultiTrajectory(_SampledRecord):
             if missing or not need:
                 raise DataError(f"no {what} column {missing[0] if missing else ''!r} in {names}; a multi-DOF record has "
                                 "columns t,x1,x2,F1,F2 (optionally v1,a1,v2,a2)")
+        if rows is not None:
+            check_rows(rows, len(np.asarray(columns[time_col])))
         pick = (lambda arr: np.asarray(arr)[rows]) if rows is not None else np.asarray
 
         def derivs(prefix):
@@ -389,6 +438,16 @@ class MultiTrajectory(_SampledRecord):
     def has_derivatives(self) -> bool:
         return self.velocities is not None and self.accelerations is not None
 
+
+    def quality_warnings(self) -> list[str]:
+        """As :meth:`Trajectory.quality_warnings`, for every state and forcing."""
+        out = self._gap_warnings()
+        for name, values in self.states.items():
+            out += signal_warnings(name, values)
+        if not any(np.any(f) for f in self.forces.values()):
+            out.append(f"the forcings {', '.join(self.forces)} are zero everywhere: the curves then describe a free "
+                       "response; check the forcing columns if the system was forced")
+        return out
 
     def dof(self, state: str, force: str | None = None) -> Trajectory:
         """One state as a :class:`Trajectory` (with ``force``, or the first forcing, as F)."""

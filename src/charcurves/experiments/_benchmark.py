@@ -60,7 +60,6 @@ RESULT_COLUMNS = ("system", "method", "snr_db", "realization", "rmse_f1", "rmse_
                   "seconds", "fit_seconds", "gain", "loss", "error")
 BENCHMARK_TAG = "benchmark"
 SYSTEMS = ("duffing", "stick-slip")
-NEURAL = ("nn-cc", "nn-cc+post-sr", "nn-cc+sym", "nn-cc+sym+post-sr")
 MIW_METHODS = ("nn-cc", "nn-cc+sym", "nn-cc+sym+post-sr")
 #: The order of the paper's figures: increasing prior knowledge within each family.
 METHOD_GROUPS = {
@@ -68,10 +67,6 @@ METHOD_GROUPS = {
     "sparse regression / polynomial": ("sindy", "sindy-cc", "poly-cc", "sindy-cc+sym", "sindy-cc+sym+post-sr"),
     "symbolic regression": ("sr", "sr-cc", "parametric"),
 }
-#: Stick-slip methods whose f-curves the paper fits with sqrt(bias² + (A η)²) (Table 3).
-BIAS_LIMITED = ("sindy-cc", "poly-cc")
-#: The scripts fit the stick-slip RMSE[x] of the NN variants at η ≤ 0.3 only (protocol §7.4).
-NN_X_ETA_MAX = 0.3
 
 #: The quick grid: minutes on a 2-core machine (Appendix F with one realisation per level).
 QUICK = {"snr_db": (40.0, 20.0, 0.0), "realizations": 2, "appendix_f_realizations": 1, "forward_cases": 2,
@@ -145,7 +140,7 @@ def results_frame(store_path: str | os.PathLike, *, noise_on: str = "force", tag
             "n_failed_cases": r.get("n_failed_cases"), "n_censored": r.get("n_censored"),
             "seconds": r.get("seconds"), "fit_seconds": ex.get("fit_seconds"), "gain": r.get("gain"),
             "loss": r.get("loss"), "error": r.get("error"), "_finished": r.get("finished_at") or "",
-            "_model_path": ex.get("model_path"),
+            "_model_path": _model_path(ex.get("model_path"), store_path),
         })
     df = pd.DataFrame(recs, columns=list(RESULT_COLUMNS) + ["_finished", "_model_path"])
     if len(df):
@@ -160,143 +155,30 @@ def results_frame(store_path: str | os.PathLike, *, noise_on: str = "force", tag
     return df
 
 
+def _model_path(path: str | None, store_path) -> str | None:
+    """A row's saved model folder: relative to the store's folder (absolute in older stores)."""
+    if not path:
+        return None
+    return os.path.join(os.path.dirname(os.path.abspath(os.fspath(store_path))), path)
+
+
 def _all_methods() -> tuple[str, ...]:
     from ..fitting import METHODS
 
     return tuple(METHODS)
 
 
-def _ok(df):
-    return df[df["status"] == "ok"]
-
-
-def ensemble_table(df, value: str, how: str = "mean") -> dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """``{(system, preset, method): (eta, ensemble, counts)}`` of one column over the ok rows,
-    ``how`` as :func:`charcurves.metrics.ensemble_rmse` (levels in descending SNR order)."""
-    from ..metrics import ensemble_by_level
-
-    out = {}
-    if value not in df.columns:  # e.g. rows without forward validation have no rmse_x
-        return out
-    ok = _ok(df)
-    for key, g in ok.groupby(["system", "preset", "method"], sort=False):
-        levels, ens, n = ensemble_by_level(g["snr_db"].to_numpy(float), g[value].to_numpy(float), how)
-        out[key] = (np.array([_eta(s) for s in levels]), ens, n)
-    return out
-
-
-def a_fit_table(df, how: str = "mean") -> dict[tuple, dict[str, Any]]:
-    """Slope-1 A and bias fits per (system, preset, method), the paper's Tables 2 and 3.
-
-    Ensembles per level by ``how`` ("mean": the scripts, which reproduce the tables; "rms": the
-    paper's Eq. 19). The scripts' masks are applied: SR at η ≤ 8 (Duffing) / ≤ 5 (stick-slip) and
-    the stick-slip RMSE[x] of the NN variants at η ≤ 0.3.
-
-    Returns
-    -------
-    dict
-        ``{key: {"A": {"f1", "f2", "x"}, "bias": {"f1": (b, A), ...}, "levels": int}}`` (NaN where
-        a term has no data).
-    """
-    from ..metrics import fit_bias, fit_slope_one
-
-    out: dict[tuple, dict[str, Any]] = {}
-    terms = {"f1": "rmse_f1", "f2": "rmse_f2", "x": "rmse_x"}
-    tables = {t: ensemble_table(df, col, how) for t, col in terms.items()}
-    keys = list(dict.fromkeys(k for tab in tables.values() for k in tab))
-    for key in keys:
-        system, _, method = key
-        A, bias, nlev = {}, {}, 0
-        for t in terms:
-            eta, ens, n = tables[t].get(key, (np.array([]), np.array([]), np.array([])))
-            eta_max = None
-            if method == "sr":
-                eta_max = paper.SR_FIT_ETA_MAX.get(system)
-            if t == "x" and method in NEURAL and system == "stick-slip":
-                eta_max = NN_X_ETA_MAX
-            if eta.size == 0 or not np.isfinite(ens).any():
-                A[t], bias[t] = float("nan"), (float("nan"), float("nan"))
-                continue
-            A[t] = fit_slope_one(eta, ens, eta_max=eta_max)
-            bias[t] = fit_bias(eta, ens, eta_max=eta_max)
-            nlev = max(nlev, int(np.sum(np.isfinite(ens) & (eta > 0))))
-        out[key] = {"A": A, "bias": bias, "levels": nlev}
-    return out
-
-
-def performance_table(fits: Mapping[tuple, Mapping[str, Any]]) -> dict[tuple, float]:
-    """Performance % per (system, preset, method) against Parametric of the same system and
-    preset (paper Figs. 9, 13); stick-slip SINDy-CC / Poly-CC use their bias-fit A, as the paper."""
-    from ..metrics import PERFORMANCE_TERMS, performance_percent
-
-    out = {}
-    for (system, preset, method), f in fits.items():
-        # Parametric does not depend on the training preset: any preset's rows serve as reference
-        ref = fits.get((system, preset, "parametric")) or next(
-            (v for (s, _, m), v in fits.items() if s == system and m == "parametric"), None)
-        if ref is None:
-            out[(system, preset, method)] = float("nan")
-            continue
-        a_m = _a_used(system, method, f)
-        a_r = _a_used(system, "parametric", ref)
-        terms = [t for t in PERFORMANCE_TERMS.get(system, ("f1", "f2"))
-                 if _finite_pos(a_m.get(t)) and _finite_pos(a_r.get(t))]
-        out[(system, preset, method)] = performance_percent(a_m, a_r, terms) if terms else float("nan")
-    return out
-
-
-def _a_used(system: str, method: str, f: Mapping[str, Any]) -> dict[str, float]:
-    a = dict(f["A"])
-    if system == "stick-slip" and method in BIAS_LIMITED:
-        for t in ("f1", "f2"):
-            a[t] = f["bias"][t][1]
-        a.pop("x", None)  # the paper gives these methods only f-terms
-    return a
-
-
-def _finite_pos(v) -> bool:
-    try:
-        return v is not None and math.isfinite(float(v)) and float(v) > 0
-    except (TypeError, ValueError):
-        return False
-
-
-def tsep_failure_snr(df, lyapunov_time: float) -> dict[tuple, float]:
-    """Per (system, preset, method): the highest SNR level whose mean t_sep is below the Lyapunov
-    time (the paper's "fails at SNR ≲ X"); ``-inf`` when no level fails, NaN without t_sep data."""
-    out = {}
-    ok = _ok(df)
-    for key, g in ok.groupby(["system", "preset", "method"], sort=False):
-        lv = g.groupby("snr_db")["t_sep"].mean().dropna().sort_index(ascending=False)
-        if lv.empty:
-            out[key] = float("nan")
-            continue
-        below = lv[lv < lyapunov_time]
-        out[key] = float(below.index[0]) if len(below) else -math.inf
-    return out
-
-
-def cost_table(df) -> dict[tuple, dict[str, float]]:
-    """Median fit time and median total job time (fit + validation) per (system, preset, method)."""
-    out = {}
-    ok = _ok(df)
-    for key, g in ok.groupby(["system", "preset", "method"], sort=False):
-        out[key] = {"fit_median": float(np.nanmedian(g["fit_seconds"])) if g["fit_seconds"].notna().any()
-                    else float("nan"),
-                    "job_median": float(np.nanmedian(g["seconds"])) if g["seconds"].notna().any() else float("nan"),
-                    "total": float(np.nansum(g["seconds"])), "jobs": int(len(g))}
-    return out
-
-
-def status_table(df) -> dict[tuple, dict[str, int]]:
-    """Jobs ok / failed and validation cases failed / run per (system, preset, method)."""
-    out = {}
-    for key, g in df.groupby(["system", "preset", "method"], sort=False):
-        ok = g[g["status"] == "ok"]
-        out[key] = {"jobs": int(len(g)), "failed_jobs": int((g["status"] != "ok").sum()),
-                    "cases": int(np.nansum(ok["n_cases"].astype(float))) if len(ok) else 0,
-                    "failed_cases": int(np.nansum(ok["n_failed_cases"].astype(float))) if len(ok) else 0}
-    return out
+from ._tables import (  # noqa: E402 - the tables of the report, re-exported (they were defined here)
+    BIAS_LIMITED as BIAS_LIMITED,
+    NEURAL as NEURAL,
+    NN_X_ETA_MAX as NN_X_ETA_MAX,
+    a_fit_table as a_fit_table,
+    cost_table as cost_table,
+    ensemble_table as ensemble_table,
+    performance_table as performance_table,
+    status_table as status_table,
+    tsep_failure_snr as tsep_failure_snr,
+)
 
 
 # ---------------------------------------------------------------------- the run
@@ -356,7 +238,7 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
                   realizations: int | None = None, full: bool = False, preset: str = "default",
                   executor: str = "local", workers: int | None = None, forward_cases: int | None = None,
                   skip: Sequence[str] = (), progress: bool = True, t_end: float = 40.0, n_points: int = 1000,
-                  base_seed: int = 0, retry_failed: bool = False) -> BenchmarkResult:
+                  base_seed: int = 0, retry_failed: bool = False, address: str | None = None) -> BenchmarkResult:
     """Run the paper's study and write ``results.csv``, ``report.md`` and ``report.html`` in ``out_dir``.
 
     Parameters
@@ -376,8 +258,10 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
     preset : {"default", "paper"}
         Training preset of the neural methods. Rows of both presets can share one ``out_dir``;
         the report puts them side by side.
-    executor, workers
-        As :func:`run_sweep` ("local" processes or "ray").
+    executor, workers, address
+        As :func:`run_sweep` ("local" processes or "ray"; ``address``, default ``RAY_ADDRESS``: a
+        Ray cluster, whose workers return rows and models to this process, which alone writes
+        ``out_dir``; see docs/cluster.md).
     forward_cases : int, optional
         Validation cases per model (default 2 quick, 10 full; 0 with ``skip=("forward",)``).
     skip : sequence of str
@@ -445,7 +329,7 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
     _log(progress, f"main sweep: {len(sweep.jobs())} jobs ({len(systems)} systems x {len(methods)} methods x "
                    f"{len(sweep.snr_db)} SNR levels x {len(sweep.realizations)} realisations), "
                    f"{sizes['forward_cases']} validation cases per model")
-    rep = run_sweep(sweep, store, executor=executor, workers=workers, progress=progress,
+    rep = run_sweep(sweep, store, executor=executor, workers=workers, progress=progress, address=address,
                     forward_cases=sizes["forward_cases"], case_time_budget=sizes["case_time_budget"],
                     # no per-job budget: it would count the fit too and leave a slow (paper-preset) model no
                     # validation at all; the per-case budget bounds the validation to cases x budget
@@ -459,26 +343,28 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
     extras = _Extras(os.path.join(out_dir, "extras.json"))
     ctx = _Context(out_dir=out_dir, systems=systems, methods=methods, preset=preset, sizes=sizes,
                    t_end=t_end, n_points=n_points, base_seed=base_seed, full=full, executor=executor,
-                   workers=workers, progress=progress, skip=tuple(skip), sweep=sweep)
+                   workers=workers, progress=progress, skip=tuple(skip), sweep=sweep, address=address)
 
     # ------------------------------------------------------------------ side studies
+    from ._side_studies import appendix_f, lyapunov, miw_study, sensitivity
+
     if "lyapunov" not in skip and "duffing" in systems:
         t0 = time.perf_counter()
-        _lyapunov(ctx, extras)
+        lyapunov(ctx, extras)
         timing["lyapunov"] = time.perf_counter() - t0
     # the paper preset trains for minutes per fit: its side studies only run with the full protocol
     slow_preset = get_preset(preset).adam_steps > 2000 and not full
     if "miw" not in skip and "duffing" in systems and any(m in methods for m in MIW_METHODS) and not slow_preset:
         t0 = time.perf_counter()
-        _miw_study(ctx, extras)
+        miw_study(ctx, extras)
         timing["miw"] = time.perf_counter() - t0
     if "sensitivity" not in skip and "nn-cc" in methods and not slow_preset:
         t0 = time.perf_counter()
-        _sensitivity(ctx, extras)
+        sensitivity(ctx, extras)
         timing["sensitivity"] = time.perf_counter() - t0
     if "appendix-f" not in skip and not (slow_preset and any(m in NEURAL for m in methods)):
         t0 = time.perf_counter()
-        _appendix_f(ctx)
+        appendix_f(ctx)
         timing["appendix-f"] = time.perf_counter() - t0
 
     # ------------------------------------------------------------------ report
@@ -516,6 +402,7 @@ class _Context:
     progress: bool
     skip: tuple
     sweep: Any
+    address: str | None = None
 
 
 def _write_csv(df, path: str) -> None:
@@ -523,140 +410,6 @@ def _write_csv(df, path: str) -> None:
     tmp = f"{path}.tmp{os.getpid()}"
     df[cols].to_csv(tmp, index=False)
     os.replace(tmp, path)
-
-
-def _dataset(ctx: _Context, system: str, snr: float, realization: int, noise_on: str = "force"):
-    """The exact noisy record the sweep's jobs of (system, snr, realization) saw."""
-    from ..data import corrupt
-    from ..systems import get_system
-    from ._sweep import dataset_seed
-
-    variant = ctx.sweep.variant_of(system)
-    clean = get_system(system, variant).simulate(ctx.t_end, ctx.n_points)
-    seed = dataset_seed("noise", system, variant, noise_on, snr, realization, ctx.base_seed)
-    return clean, corrupt(clean, snr, on=noise_on, seed=seed)
-
-
-def _lyapunov(ctx: _Context, extras: _Extras) -> None:
-    from ..metrics import largest_lyapunov_exponent
-    from ..systems import get_system
-
-    system = get_system("duffing", ctx.sweep.variant_of("duffing"))
-    sig = {"variant": system.variant, "params": system.parameters(), "t_total": ctx.sizes["lyapunov_time"]}
-    if extras.get("lyapunov", sig) is not None:
-        return
-    _log(ctx.progress, f"Lyapunov exponent of the true Duffing over {ctx.sizes['lyapunov_time']:g} time units")
-    t0 = time.perf_counter()
-    p = system.parameters()
-    lam = largest_lyapunov_exponent(system.f1, system.f2, system.forcing, p["x0"], p["v0"],
-                                    t_total=float(ctx.sizes["lyapunov_time"]), rtol=1e-9, atol=1e-11)
-    extras.put("lyapunov", sig, {"lambda_max": lam, "T_L": 1.0 / lam if lam > 0 else float("nan"),
-                                 "seconds": time.perf_counter() - t0})
-
-
-def _estimator(ctx: _Context, system: str, method: str, preset=None, **extra_opts):
-    from ..fitting import CharacteristicCurves
-
-    opts = ctx.sweep.fit_options(system, method)
-    opts.update(extra_opts)
-    opts.setdefault("threads", 1)
-    return CharacteristicCurves(method=method, preset=preset if preset is not None else ctx.preset, **opts)
-
-
-def _miw_study(ctx: _Context, extras: _Extras) -> None:
-    """Table 1: f2 residuals at the training points, (i) K training seeds on one 20 dB dataset,
-    (ii) one run on each of R noise realisations; MIW_range and MIW_99 of each ensemble."""
-    from ..metrics import curve_residuals, miw
-    from ..systems import get_system
-
-    truth = get_system("duffing", ctx.sweep.variant_of("duffing")).true_curves()
-    k, r = int(ctx.sizes["miw_seeds"]), int(ctx.sizes["miw_realizations"])
-    for method in [m for m in MIW_METHODS if m in ctx.methods]:
-        sig = {"method": method, "preset": ctx.preset, "seeds": k, "realizations": r, "base_seed": ctx.base_seed,
-               "n_points": ctx.n_points, "t_end": ctx.t_end}
-        if extras.get(f"miw:{method}:{ctx.preset}", sig) is not None:
-            continue
-        _log(ctx.progress, f"MIW ensembles of {method}: {k} seeds on one dataset, {r} noise realisations (20 dB)")
-        t0 = time.perf_counter()
-        est = _estimator(ctx, "duffing", method)
-        _, data0 = _dataset(ctx, "duffing", 20.0, 0)
-        seed_models = est.fit_many([data0] * k, seeds=list(range(k)))
-        z, res = zip(*(curve_residuals(m, data0, truth, "f2") for m in seed_models))
-        m_seeds = miw(list(z), list(res))
-        t1 = time.perf_counter()
-        datasets = [_dataset(ctx, "duffing", 20.0, i)[1] for i in range(r)]
-        real_models = est.fit_many(datasets, seeds=list(range(r)))
-        z2, res2 = zip(*(curve_residuals(m, d, truth, "f2") for m, d in zip(real_models, datasets)))
-        m_real = miw(list(z2), list(res2))
-        extras.put(f"miw:{method}:{ctx.preset}", sig, {
-            "seeds": {"miw_range": m_seeds.miw_range, "miw_99": m_seeds.miw_99, "n": k, "seconds": t1 - t0},
-            "realizations": {"miw_range": m_real.miw_range, "miw_99": m_real.miw_99, "n": r,
-                             "seconds": time.perf_counter() - t1}})
-
-
-#: Appendix C variations tried on the run's preset (a few of the paper's rows that are quick here).
-SENSITIVITY_VARIATIONS: tuple[tuple[str, Any], ...] = (
-    ("activation", "softplus"), ("activation", "tanh"), ("activation", "relu"),
-    ("adam_lr", 1e-3), ("adam_lr", 1e-2), ("adam_lr", 1e-1),
-    ("width", 5), ("width", 10), ("width", 25),
-)
-#: Added with ``full``: a 100-wide network costs ~1-2 min per fit with the default preset's LM.
-SENSITIVITY_FULL_EXTRA: tuple[tuple[str, Any], ...] = (("width", 100),)
-
-
-def _sensitivity(ctx: _Context, extras: _Extras) -> None:
-    """Appendix C, feasible part: NN-CC on one 20 dB dataset per system, one setting changed at a time."""
-    from ..fitting import get_preset
-    from ..metrics import curve_errors
-    from ..systems import get_system
-
-    base = get_preset(ctx.preset)
-    for system in ctx.systems:
-        variations = SENSITIVITY_VARIATIONS + (SENSITIVITY_FULL_EXTRA if ctx.full else ())
-        sig = {"system": system, "preset": base.to_dict(), "base_seed": ctx.base_seed, "n_points": ctx.n_points,
-               "variations": [list(v) for v in variations]}
-        if extras.get(f"sensitivity:{system}:{ctx.preset}", sig) is not None:
-            continue
-        _log(ctx.progress, f"Appendix C sensitivity of NN-CC on {system} (20 dB, one dataset)")
-        truth = get_system(system, ctx.sweep.variant_of(system)).true_curves()
-        _, data = _dataset(ctx, system, 20.0, 0)
-        rows = []
-        for setting, value in variations:
-            change = {"hidden": (int(value),) * len(base.hidden)} if setting == "width" else {setting: value}
-            preset = base.replace(name=f"{base.name}*", **change)
-            t0 = time.perf_counter()
-            try:
-                model = _estimator(ctx, system, "nn-cc", preset=preset).fit(data).model_
-                err = curve_errors(model, truth)
-                rows.append({"setting": setting, "value": value, "loss": float(model.loss), "rmse_f1": err.get("f1"),
-                             "rmse_f2": err.get("f2"), "seconds": time.perf_counter() - t0,
-                             "is_default": _is_base(base, setting, value)})
-            except Exception as exc:  # noqa: BLE001 - a diverging setting is a result, not a crash
-                rows.append({"setting": setting, "value": value, "error": f"{type(exc).__name__}: {exc}"[:300],
-                             "seconds": time.perf_counter() - t0, "is_default": _is_base(base, setting, value)})
-        extras.put(f"sensitivity:{system}:{ctx.preset}", sig, rows)
-
-
-def _is_base(base, setting: str, value) -> bool:
-    if setting == "width":
-        return all(h == int(value) for h in base.hidden)
-    return getattr(base, setting) == value
-
-
-def _appendix_f(ctx: _Context) -> None:
-    """Appendix F: noise on x, derivatives by Savitzky-Golay, CC errors only (its own store)."""
-    from ._sweep import Sweep, run_sweep
-
-    reals = min(int(ctx.sizes["realizations"]), int(ctx.sizes["appendix_f_realizations"]))
-    sweep = Sweep(systems=ctx.systems, methods=ctx.methods, snr_db=ctx.sizes["snr_db"],
-                  realizations=reals, noise_on="state", options={"derivatives": "savgol"},
-                  method_options=_sr_budget(ctx.methods, ctx.sizes["sr_generations"]),
-                  preset=ctx.preset, t_end=ctx.t_end, n_points=ctx.n_points, base_seed=ctx.base_seed,
-                  tag=BENCHMARK_TAG)
-    _log(ctx.progress, f"Appendix F (noise on x, Savitzky-Golay): {len(sweep.jobs())} jobs")
-    store = os.path.join(ctx.out_dir, "appendix_f.sqlite")
-    run_sweep(sweep, store, executor=ctx.executor, workers=ctx.workers, progress=ctx.progress)
-    _write_csv(results_frame(store, noise_on="state"), os.path.join(ctx.out_dir, "appendix_f.csv"))
 
 
 # ---------------------------------------------------------------------- the report

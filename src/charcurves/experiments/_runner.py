@@ -75,7 +75,8 @@ class RunSettings:
     sim_rtol: float | None = None
     sim_atol: float | None = None
     torch_threads: int | None = 1
-    save_models_dir: str | None = None
+    #: return each fitted model's files (bytes) with its row, for the driver to write
+    return_models: bool = False
 
 
 # ---------------------------------------------------------------------- worker setup
@@ -187,6 +188,7 @@ def _is_neural(method: str) -> bool:
 
 
 def _slug(job: Job) -> str:
+    """The folder name of a job's saved model (readable, and unique by a hash of config and tag)."""
     import hashlib
     import re
 
@@ -306,10 +308,11 @@ def _score(job: Job, model, settings: RunSettings, started: str, fit_seconds: fl
                    n_failed_cases=s["n_failed_cases"], n_censored=s["n_censored"])
         extra["forward"] = {"summary": s, "cases": ev.to_records(), "n_requested": settings.forward_cases,
                             "n_attempts": cases.n_attempts, "box": cases.box}
-    if settings.save_models_dir:
-        path = os.path.join(settings.save_models_dir, _slug(job))
-        model.save(path)
-        extra["model_path"] = path
+    if settings.return_models:  # the driver writes them (model_name under the sweep's models folder)
+        from ._models import MODEL_FILES_KEY, model_files
+
+        row[MODEL_FILES_KEY] = model_files(model)
+        extra["model_name"] = _slug(job)
     extra["eval_seconds"] = time.perf_counter() - t0
     row.update(status="ok", error=None, seconds=fit_seconds + extra["eval_seconds"], started_at=started,
                finished_at=_now(), extra=extra)

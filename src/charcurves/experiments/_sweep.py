@@ -24,13 +24,13 @@ import hashlib
 import json
 import math
 import os
-import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from .._errors import ConfigError
-from ._runner import Job, RunSettings, failed_rows, init_worker, run_unit
+from ._executors import Progress, StopSignals, SweepInterrupted, ray_address, run_pool, run_ray
+from ._runner import Job, RunSettings, run_unit
 from ._store import ResultsStore, _jsonable
 
 __all__ = [
@@ -125,7 +125,8 @@ class Sweep:
         Size of the clean forcing for the SNR (default: the library's "std"; the scripts: "rms").
     t_end, n_points : training record (40 s, 1000 samples)
     base_seed : int
-        Enters every derived seed; change it for an independent replicate of the whole sweep.
+        Enters every derived seed; change it for an independent replicate of the whole sweep
+        (0 ... 2**32 - 1).
     tag : str
         A free label that is part of every job's identity (separates campaigns in one store).
     """
@@ -146,7 +147,7 @@ class Sweep:
     tag: str = ""
 
     def __post_init__(self) -> None:
-        from ..data._noise import NOISE_TARGETS
+        from ..data import NOISE_TARGETS
         from ..fitting import METHODS
         from ..fitting import get_preset
         from ..systems import get_system
@@ -188,6 +189,10 @@ class Sweep:
         bad = [m for m in self.method_options if m not in self.methods]
         if bad:
             raise ConfigError(f"method_options names methods not in the sweep: {bad}")
+        if isinstance(self.base_seed, bool) or not isinstance(self.base_seed, int) or \
+                not 0 <= self.base_seed <= 2**32 - 1:
+            raise ConfigError(f"base_seed must be an integer from 0 to {2**32 - 1} (32 bits, what every random "
+                              f"generator charcurves seeds accepts), got {self.base_seed!r}")
         set_("options", dict(self.options))
         set_("method_options", {k: dict(v or {}) for k, v in self.method_options.items()})
 
@@ -307,60 +312,6 @@ def plan_units(jobs: Sequence[Job], *, batch: str | int = "level", max_batch: in
     return units
 
 
-class SweepInterrupted(KeyboardInterrupt):
-    """Ctrl-C (SIGINT) or SIGTERM stopped :func:`run_sweep`; every finished row is stored.
-
-    A ``KeyboardInterrupt``, so code that stops on Ctrl-C keeps doing so; ``str()`` is the one
-    line to show. Attributes: ``n_finished`` (rows stored by this run), ``n_todo``, ``store_path``.
-    """
-
-    def __init__(self, n_finished: int, n_todo: int, store_path: str, signal_name: str = "SIGINT"):
-        self.n_finished, self.n_todo, self.store_path = int(n_finished), int(n_todo), str(store_path)
-        super().__init__(f"sweep interrupted ({signal_name}): {self.n_finished} of {self.n_todo} jobs finished "
-                         f"and stored in {self.store_path}; rerun the same command to resume")
-
-    def __str__(self) -> str:
-        return str(self.args[0])
-
-
-class _StopSignals:
-    """SIGINT/SIGTERM raise KeyboardInterrupt in the driver, but never while a row is being stored
-    (the signal is held until the row is committed and counted). Only in the main thread: signal
-    handlers cannot be installed elsewhere, and there the default Ctrl-C behaviour stays."""
-
-    def __init__(self):
-        self.received: str | None = None
-        self.deferring = False
-        self._old: dict = {}
-
-    def __enter__(self):
-        import signal
-        import threading
-
-        if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                self._old[sig] = signal.signal(sig, self._handle)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        import signal
-
-        for sig, old in self._old.items():
-            signal.signal(sig, old)
-
-    def _handle(self, signum, frame) -> None:
-        import signal
-
-        self.received = signal.Signals(signum).name
-        if not self.deferring:
-            raise KeyboardInterrupt
-
-    def check(self) -> None:
-        """Raise the interrupt held while a row was stored."""
-        if self.received is not None:
-            raise KeyboardInterrupt
-
-
 @dataclasses.dataclass
 class SweepReport:
     """What :func:`run_sweep` did."""
@@ -380,48 +331,6 @@ class SweepReport:
         return (f"{self.n_jobs} jobs: {self.n_skipped} already stored, {self.n_run} run in {self.n_units} units "
                 f"({self.n_ok} ok, {self.n_failed} failed) in {self.seconds:.1f} s with {self.executor} "
                 f"x{self.workers}; results in {self.store_path}")
-
-
-class _Progress:
-    """tqdm when installed, else one line on stderr per finished unit."""
-
-    def __init__(self, total: int, enabled: bool, desc: str = "sweep"):
-        self.total, self.done, self.failed, self.enabled = total, 0, 0, enabled
-        self.t0 = time.perf_counter()
-        self.bar = None
-        if enabled:
-            try:
-                from tqdm.auto import tqdm
-
-                self.bar = tqdm(total=total, desc=desc, unit="job", file=sys.stderr)
-            except ImportError:
-                self.bar = None
-
-    def update(self, n: int, failed: int) -> None:
-        self.done += n
-        self.failed += failed
-        if not self.enabled:
-            return
-        if self.bar is not None:
-            self.bar.update(n)
-            self.bar.set_postfix(failed=self.failed)
-            return
-        el = time.perf_counter() - self.t0
-        eta = el / self.done * (self.total - self.done) if self.done else float("nan")
-        sys.stderr.write(f"[charcurves sweep] {self.done}/{self.total} jobs done, {self.failed} failed, "
-                         f"elapsed {_fmt(el)}, eta {_fmt(eta)}\n")
-        sys.stderr.flush()
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
-
-
-def _fmt(s: float) -> str:
-    if not math.isfinite(s):
-        return "?"
-    s = int(round(s))
-    return f"{s // 3600}h{s % 3600 // 60:02d}m{s % 60:02d}s" if s >= 3600 else f"{s // 60}m{s % 60:02d}s"
 
 
 def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "local", workers: int | None = None,
@@ -444,7 +353,8 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
         "local": the driver itself when ``workers`` is 1, else a pool of ``workers`` processes
         (spawned; call from under ``if __name__ == "__main__":`` in scripts). "ray": the same
         job function as Ray tasks (``ray.init(num_cpus=workers, include_dashboard=False)`` unless
-        Ray is initialised already, or ``ray.init(address=address)`` for a cluster).
+        Ray is initialised already, or ``ray.init(address=address)`` for a cluster). Only the
+        driver (this process) writes the store and the models.
     workers : int, optional
         Parallel workers (default: the CPU count).
     progress : bool
@@ -470,10 +380,15 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
         Torch threads in each worker (1: best on shared machines; None: leave torch's setting).
     save_models : bool or str
         Save each fitted model (``FittedModel.save``) under ``<store>.models/`` or the given folder.
+        Workers return the model files as bytes with their rows and the driver writes them, so on
+        a cluster the models land on the driver's disk; a row's ``extra["model_path"]`` is the
+        folder relative to the store's folder.
     address : str, optional
-        Ray cluster address (``"auto"``, ``"ray://host:10001"``).
+        Ray cluster to run on with ``executor="ray"`` (``"auto"``, ``"ray://head:10001"``); default
+        ``RAY_ADDRESS`` from the environment, else a private Ray instance of ``workers`` CPUs. See
+        docs/cluster.md.
     ray_init_kwargs : mapping, optional
-        Extra ``ray.init`` arguments (e.g. ``runtime_env``).
+        Extra ``ray.init`` arguments (e.g. ``runtime_env``; no ``num_cpus`` with a cluster).
     on_row : callable, optional
         Called with every row after it is stored.
 
@@ -502,7 +417,10 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
                            case_time_budget=float(case_time_budget), time_budget_per_job=time_budget_per_job,
                            max_attempts=int(max_attempts), max_failed_cases=max_failed_cases,
                            sim_rtol=forward_rtol, sim_atol=forward_atol,
-                           torch_threads=torch_threads, save_models_dir=models_dir)
+                           torch_threads=torch_threads, return_models=models_dir is not None)
+    if executor == "ray":
+        address = ray_address(address)
+    store_dir = os.path.dirname(os.path.abspath(os.fspath(store_path)))
     store = ResultsStore(store_path)
     try:
         done = store.completed_keys(status="ok" if retry_failed else None)
@@ -511,14 +429,15 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
         n_workers = int(workers) if workers is not None else (os.cpu_count() or 1)
         store.log_run(sweep.to_dict(), {"executor": executor, "workers": n_workers, **dataclasses.asdict(settings),
                                         "n_jobs": len(jobs), "n_todo": len(todo)})
-        bar = _Progress(len(todo), progress and bool(todo))
+        bar = Progress(len(todo), progress and bool(todo))
         counts = {"ok": 0, "failed": 0}
-        stop = _StopSignals()
+        stop = StopSignals()
 
         def consume(rows: list[dict]) -> None:
             stop.deferring = True  # a signal now waits until the rows are committed and counted
             try:
                 for row in rows:
+                    _write_model(row, models_dir, store_dir)  # before its row: the row commits the job
                     store.write(row)
                     counts[row["status"]] += 1
                     if on_row is not None:
@@ -531,15 +450,15 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
         try:
             with stop:
                 if executor == "ray":
-                    _run_ray(units, settings, n_workers if workers is not None or address is None else None,
-                             address, ray_init_kwargs, consume)
+                    run_ray(units, settings, n_workers if workers is not None or address is None else None,
+                            address, ray_init_kwargs, consume)
                 elif min(n_workers, len(units)) <= 1:
                     for unit in units:
                         rows = run_unit(unit, settings)
                         stop.check()  # a fit that caught Ctrl-C returns its model so far: not a finished job
                         consume(rows)
                 else:
-                    _run_pool(units, settings, min(n_workers, len(units)), consume)
+                    run_pool(units, settings, min(n_workers, len(units)), consume)
         except KeyboardInterrupt:
             raise SweepInterrupted(counts["ok"] + counts["failed"], len(todo), store.path,
                                    stop.received or "SIGINT") from None
@@ -552,98 +471,17 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
         store.close()
 
 
-def _run_pool(units, settings: RunSettings, n: int, consume) -> None:
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-    from concurrent.futures.process import BrokenProcessPool
+def _write_model(row: dict, models_dir: str | None, store_dir: str) -> None:
+    """Write the model files a worker returned with ``row`` (and drop them from it)."""
+    from ._models import MODEL_FILES_KEY, write_model_files
 
-    pool = ProcessPoolExecutor(max_workers=n, mp_context=mp.get_context("spawn"), initializer=_init_pool_worker,
-                               initargs=(settings.torch_threads, os.getpid()))
+    files = row.pop(MODEL_FILES_KEY, None)
+    name = (row.get("extra") or {}).pop("model_name", None)
+    if files is None or models_dir is None or name is None:
+        return
+    path = os.path.join(models_dir, name)
+    write_model_files(path, files)
     try:
-        futures = {pool.submit(run_unit, unit, settings): unit for unit in units}
-        for fut in as_completed(futures):
-            unit = futures[fut]
-            try:
-                rows = fut.result()
-            except BrokenProcessPool as exc:
-                rows = failed_rows(unit, f"worker process died ({type(exc).__name__}: {exc}); "
-                                         "rerun with retry_failed=True")
-            except Exception as exc:  # noqa: BLE001 - e.g. an unpicklable result
-                rows = failed_rows(unit, f"{type(exc).__name__}: {exc}")
-            consume(rows)
-    except BaseException:
-        _stop_pool(pool)
-        raise
-    pool.shutdown(wait=True)
-
-
-def _init_pool_worker(threads: int | None, parent_pid: int) -> None:
-    """Pool workers ignore Ctrl-C: the terminal sends SIGINT to the whole process group, and a
-    worker's fit would catch it and return an interrupted model as a finished job. The driver
-    stops the workers itself (:func:`_stop_pool`)."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    init_worker(threads, parent_pid)
-
-
-def _stop_pool(pool, grace: float = 3.0) -> None:
-    """Cancel queued units and end the workers now (SIGTERM, SIGKILL after ``grace`` seconds);
-    a unit a worker was running is lost and reruns on resume."""
-    procs = list((getattr(pool, "_processes", None) or {}).values())  # no public handle before 3.14
-    pool.shutdown(wait=False, cancel_futures=True)
-    for p in procs:
-        if p.is_alive():
-            p.terminate()
-    deadline = time.monotonic() + grace
-    for p in procs:
-        p.join(max(0.0, deadline - time.monotonic()))
-        if p.is_alive():
-            p.kill()
-            p.join(1.0)
-
-
-def _run_ray(units, settings: RunSettings, num_cpus: int | None, address: str | None,
-             init_kwargs: Mapping[str, Any] | None, consume) -> None:
-    try:
-        import ray
-    except ImportError:
-        raise ConfigError("executor='ray' needs Ray: pip install ray") from None
-    owned = False
-    if not ray.is_initialized():
-        kw = dict(init_kwargs or {})
-        if address is not None:
-            ray.init(address=address, **kw)
-        else:
-            kw.setdefault("include_dashboard", False)
-            kw.setdefault("num_cpus", num_cpus or os.cpu_count() or 1)
-            kw.setdefault("logging_level", "warning")
-            ray.init(**kw)
-        owned = True
-    try:
-        task = ray.remote(num_cpus=1, max_retries=0)(run_unit)
-        pending = {task.remote(unit, settings): unit for unit in units}
-        try:
-            _drain_ray(ray, pending, consume)
-        except BaseException:
-            for ref in pending:  # queued and running tasks; a running one's row is lost and reruns on resume
-                try:
-                    ray.cancel(ref, force=True)
-                except Exception:  # noqa: BLE001 - already finished or its worker gone
-                    pass
-            raise
-    finally:
-        if owned:
-            ray.shutdown()
-
-
-def _drain_ray(ray, pending: dict, consume) -> None:
-    while pending:
-        ready, _ = ray.wait(list(pending), num_returns=1)
-        for ref in ready:
-            unit = pending.pop(ref)
-            try:
-                rows = ray.get(ref)
-            except Exception as exc:  # noqa: BLE001 - a crashed worker or task
-                rows = failed_rows(unit, f"Ray task failed ({type(exc).__name__}: {exc})"[:2000])
-            consume(rows)
+        row["extra"]["model_path"] = os.path.relpath(os.path.abspath(path), store_dir).replace(os.sep, "/")
+    except ValueError:  # another drive (Windows)
+        row["extra"]["model_path"] = os.path.abspath(path)

@@ -11,7 +11,7 @@ import numpy as np
 
 from .._errors import ConfigError, ModelFileError
 from ..curves import FittedCurve, curve_from_spec, expression_cost_problem
-from ..io._csv import atomic_write_bytes
+from ..io import atomic_write_bytes
 from ..templates import EquationTemplate, display, get_template
 
 __all__ = ["FittedModel", "FORMAT_VERSION", "MODEL_SCHEMA", "load_model", "validate_model_document"]
@@ -231,11 +231,12 @@ class FittedModel:
         if not os.path.exists(d):
             # a new model appears all at once: written in a temporary sibling, then renamed
             import shutil
-            import tempfile
+
+            from ..io import make_temp_dir
 
             parent = os.path.dirname(os.path.abspath(d))
             os.makedirs(parent, exist_ok=True)
-            tmp = tempfile.mkdtemp(dir=parent, prefix=".tmp-model-")
+            tmp = make_temp_dir(parent, ".tmp-model-")
             try:
                 atomic_write_bytes(os.path.join(tmp, _ARRAYS), blob)
                 atomic_write_bytes(os.path.join(tmp, _MODEL_JSON), text)

@@ -111,7 +111,8 @@ class ShootingProblem(LeastSquaresProblem):
             for j in b.frozen:
                 frozen[self.block_offsets[i] + j] = True
         self.frozen = frozen if bool(frozen.any()) else None
-        self.A_inv = torch.as_tensor(forward.A_inv, dtype=dtype)
+        self.A_inv_list = [[float(a) for a in row] for row in forward.A_inv]
+        self._compiled = None
         self._out_w = 1.0 / math.sqrt(self.n_data)
 
     @property
@@ -122,6 +123,7 @@ class ShootingProblem(LeastSquaresProblem):
         import copy
 
         sub = copy.copy(self)
+        sub._compiled = None
         sub.blocks = [CurveBlock(b.name, b.param, b.center[rows], b.half[rows], b.out[rows], b.shift[rows], b.frozen)
                       for b in self.blocks]
         sub.y = self.y[rows]
@@ -133,95 +135,128 @@ class ShootingProblem(LeastSquaresProblem):
         return sub
 
     # ------------------------------------------------------------------ the ODE at one stage
-    def _rhs(self, theta, y, stage_vals, need_jac: bool):
-        """``dy (B,S,D)`` and, with ``need_jac``, ``Jy (B,S,D,D)``, ``Jt (B,S,D,P_shared)``."""
+    def _plan(self):
+        """Per curve and equation: what is a plain state, a constant or a forcing column (no Signal
+        call needed at run time), and what needs a compiled Signal."""
+        if getattr(self, "_compiled", None) is not None:
+            return self._compiled
         fm = self.forward
-        B, S, D = y.shape
-        like = y[..., 0]
-        vals = dict(stage_vals)
-        for i, name in enumerate(fm.layout):
-            vals[name] = y[..., i]
-        E = len(fm.equations)
-        curve_vals = {}
+        curves = []
         for bi, blk in enumerate(self.blocks):
             sig = fm.curves[blk.name]
-            u = sig.value(vals, like)
+            name = str(sig.expr)
+            curves.append((bi, blk, sig, fm.layout.index(name) if name in fm.layout else None))
+        eqs = []
+        for e, eq in enumerate(fm.equations):
+            inp = eq["input"]
+            force = str(inp.expr) if str(inp.expr) in self.inputs and not inp._grads else None
+            k0 = eq["known0"]
+            mult = {n: (m.constant, m) for n, m in eq["mult"].items()}
+            eqs.append((e, k0.constant, k0, force, inp, mult, eq["scalars"]))
+        simple = all(c[3] is not None for c in curves) and all(
+            q[1] is not None and q[3] is not None and not q[6] and all(m[0] is not None for m in q[5].values())
+            for q in eqs)
+        self._compiled = (curves, eqs, simple)
+        return self._compiled
+
+    def _rhs(self, theta, y, stage, need_jac: bool):
+        """``dy (B,S,D)`` and, with ``need_jac``, for each layout entry its tangent recipe:
+        ``("copy", j)`` (its derivative is entry j) or ``("top", {d: coef}, Tt)`` with
+        ``d(dy_i) = sum_d coef_d T_d + Tt`` (``Tt``: ``(B,S,P_shared)`` or None)."""
+        fm = self.forward
+        curves, eqs, simple = self._plan()
+        like = y[..., 0]
+        vals = None
+        if not simple:
+            vals = dict(stage)
+            for i, name in enumerate(fm.layout):
+                vals[name] = y[..., i]
+        cv = {}
+        for bi, blk, sig, direct in curves:
+            u = y[..., direct] if direct is not None else sig.value(vals, like)
             th = theta[:, self.block_offsets[bi]:self.block_offsets[bi] + blk.n_params]
             z = (u - blk.center) / blk.half
             if need_jac:
                 f, J, d = blk.param.evaluate_all(th, z)
-                curve_vals[blk.name] = (blk.shift + blk.out * f, (blk.out / blk.half) * d, blk.out.unsqueeze(-1) * J,
-                                        sig.grad(vals, like), bi)
+                du = {direct: 1.0} if direct is not None else sig.grad(vals, like)
+                cv[blk.name] = (blk.shift + blk.out * f, (blk.out / blk.half) * d, blk.out.unsqueeze(-1) * J, du, bi)
             else:
-                curve_vals[blk.name] = (blk.shift + blk.out * blk.param.evaluate(th, z), None, None, None, bi)
+                cv[blk.name] = (blk.shift + blk.out * blk.param.evaluate(th, z), None, None, None, bi)
         g = theta[:, self.gain_index:self.gain_index + 1] if self.free_gain else self.gain
-        r0 = []
-        dr_y = [] if need_jac else None
-        dr_t = [] if need_jac else None
-        for e, eq in enumerate(fm.equations):
-            inp = eq["input"].value(vals, like)
-            r = eq["known0"].value(vals, like) - g * inp
+        r0, ry_all, rt_all = [], [], []
+        for e, k0c, k0, force, inp, mult, scalars in eqs:
+            u_in = stage[force] if force is not None else inp.value(vals, like)
+            r = (k0c if k0c is not None else k0.value(vals, like)) - g * u_in
+            ry: dict = {}
+            rt = None
             if need_jac:
-                ry = like.new_zeros(B, S, D)
-                rt = like.new_zeros(B, S, self.n_shared)
-                _add_grad(ry, eq["known0"].grad(vals, like), 1.0)
-                _add_grad(ry, eq["input"].grad(vals, like), -g)
+                rt = like.new_zeros(*like.shape, self.n_shared)
+                if k0c is None:
+                    _acc(ry, k0.grad(vals, like), 1.0)
+                if force is None:
+                    _acc(ry, inp.grad(vals, like), -g)
                 if self.free_gain:
-                    rt[..., self.gain_index] = -inp
-            for name, msig in eq["mult"].items():
-                Fv, dF, JF, du, bi = curve_vals[name]
-                m = msig.value(vals, like)
-                r = r + m * Fv
+                    rt[..., self.gain_index] = -u_in
+            for name, (mc, msig) in mult.items():
+                Fv, dF, JF, du, bi = cv[name]
+                m = mc if mc is not None else msig.value(vals, like)
+                r = r + (Fv if mc == 1.0 else m * Fv)
                 if need_jac:
-                    _add_grad(ry, msig.grad(vals, like), Fv)
-                    _add_grad(ry, du, m * dF)
+                    if mc is None:
+                        _acc(ry, msig.grad(vals, like), Fv)
+                    _acc(ry, du, dF if mc == 1.0 else m * dF)
                     o = self.block_offsets[bi]
-                    rt[..., o:o + self.blocks[bi].n_params] += m.unsqueeze(-1) * JF
-            for sname, ssig in eq["scalars"].items():
+                    if mc == 1.0:
+                        rt[..., o:o + self.blocks[bi].n_params] += JF
+                    else:
+                        rt[..., o:o + self.blocks[bi].n_params] += (m.unsqueeze(-1) if torch.is_tensor(m) else m) * JF
+            for sname, ssig in scalars.items():
                 j = self.scalar_index[sname]
                 a = theta[:, j:j + 1]
-                s = ssig.value(vals, like)
-                r = r + a * s
+                sv = ssig.value(vals, like)
+                r = r + a * sv
                 if need_jac:
-                    _add_grad(ry, ssig.grad(vals, like), a)
-                    rt[..., j] += s
+                    _acc(ry, ssig.grad(vals, like), a)
+                    rt[..., j] += sv
             if e in self.offset_index:
                 j = self.offset_index[e]
                 r = r + theta[:, j:j + 1]
                 if need_jac:
                     rt[..., j] += 1.0
             r0.append(r)
-            if need_jac:
-                dr_y.append(ry)
-                dr_t.append(rt)
-        R0 = torch.stack(r0, dim=-1)  # (B, S, E)
-        top = -(R0 @ self.A_inv.T)  # (B, S, U)
-        dy = torch.empty_like(y)
-        for i in range(D):
+            ry_all.append(ry)
+            rt_all.append(rt)
+        A = self.A_inv_list
+        tops = []
+        for u in range(len(A)):
+            top = None
+            for e, a in enumerate(A[u]):
+                if a:
+                    top = -a * r0[e] if top is None else top - a * r0[e]
+            tops.append(top)
+        cols = []
+        for i in range(self.D):
             j = fm.derivative_of(i)
-            dy[..., i] = y[..., j] if j is not None else top[..., fm.top_index(i)]
+            cols.append(y[..., j] if j is not None else tops[fm.top_index(i)])
+        dy = torch.stack(cols, dim=-1)
         if not need_jac:
-            return dy, None, None
-        Ry = torch.stack(dr_y, dim=-2)  # (B, S, E, D)
-        Rt = torch.stack(dr_t, dim=-2)  # (B, S, E, P)
-        Ty = -torch.einsum("ue,bsed->bsud", self.A_inv, Ry)
-        Tt = -torch.einsum("ue,bsep->bsup", self.A_inv, Rt)
-        Jy = like.new_zeros(B, S, D, D)
-        Jt = like.new_zeros(B, S, D, self.n_shared)
-        for i in range(D):
+            return dy, None
+        recipes = []
+        for i in range(self.D):
             j = fm.derivative_of(i)
             if j is not None:
-                Jy[..., i, j] = 1.0
-            else:
-                Jy[..., i, :] = Ty[..., fm.top_index(i), :]
-                Jt[..., i, :] = Tt[..., fm.top_index(i), :]
-        return dy, Jy, Jt
-
-    def _stage(self, k: int, which: int) -> dict:
-        out = {"t": self.times[which][k]}
-        for name, arrs in self.inputs.items():
-            out[name] = arrs[which][k]
-        return out
+                recipes.append(("copy", j))
+                continue
+            u = fm.top_index(i)
+            coef: dict = {}
+            Tt = None
+            for e, a in enumerate(A[u]):
+                if not a:
+                    continue
+                _acc(coef, ry_all[e], -a)
+                Tt = -a * rt_all[e] if Tt is None else Tt - a * rt_all[e]
+            recipes.append(("top", coef, Tt))
+        return dy, recipes
 
     # ------------------------------------------------------------------ simulation
     def simulate(self, theta, need_jac: bool = True):
@@ -232,43 +267,53 @@ class ShootingProblem(LeastSquaresProblem):
         y = theta[:, P:].reshape(B, S, D)
         h = self.dt / self.substeps
         outs = [y[..., self.out_index]]
+        T: list = []
+        out_t: list = []
         if need_jac:
-            St = y.new_zeros(B, S, D, P)
-            Sy = torch.eye(D, dtype=y.dtype).expand(B, S, D, D).clone()
-            out_t, out_y = [St[..., self.out_index, :]], [Sy[..., self.out_index, :]]
-        steps = (self.L - 1) * self.substeps
-        for k in range(steps):
-            stages = (self._stage(k, 0), self._stage(k, 1), self._stage(k, 1), self._stage(k, 2))
-            acc = 0.0
-            acc_t = acc_y = 0.0
-            for st, (c, w) in enumerate(((0.0, 1.0), (0.5, 2.0), (0.5, 2.0), (1.0, 1.0))):
-                if st == 0:
-                    ys, St_s, Sy_s = y, (St if need_jac else None), (Sy if need_jac else None)
-                else:
-                    ys = y + (c * h) * ky
-                    if need_jac:
-                        St_s = St + (c * h) * kt
-                        Sy_s = Sy + (c * h) * kyy
-                ky, Jy, Jt = self._rhs(theta, ys, stages[st], need_jac)
-                acc = acc + w * ky
+            # tangent of each layout entry: (B, S, P + D) = [shared parameters | own initial state]
+            for d in range(D):
+                t = y.new_zeros(B, S, P + D)
+                t[..., P + d] = 1.0
+                T.append(t)
+            out_t.append(torch.stack([T[o] for o in self.out_index], dim=2))
+        names = list(self.inputs)
+        weights = ((0.0, 1.0), (0.5, 2.0), (0.5, 2.0), (1.0, 1.0))
+        for k in range((self.L - 1) * self.substeps):
+            st = [{"t": self.times[w][k], **{n: self.inputs[n][w][k] for n in names}} for w in (0, 1, 2)]
+            stages = (st[0], st[1], st[1], st[2])
+            acc = None
+            accT: list = []
+            ky, kT = None, None
+            for si, (c, w) in enumerate(weights):
+                ys = y if si == 0 else y + (c * h) * ky
+                Ts = T if (si == 0 or not need_jac) else [T[d] + (c * h) * kT[d] for d in range(D)]
+                ky, recipes = self._rhs(theta, ys, stages[si], need_jac)
+                acc = w * ky if acc is None else acc + w * ky
                 if need_jac:
-                    kt = Jy @ St_s + Jt
-                    kyy = Jy @ Sy_s
-                    acc_t = acc_t + w * kt
-                    acc_y = acc_y + w * kyy
+                    kT = []
+                    for rec in recipes:
+                        if rec[0] == "copy":
+                            kT.append(Ts[rec[1]])
+                            continue
+                        _, coef, Tt = rec
+                        val = torch.nn.functional.pad(Tt, (0, D)) if Tt is not None else y.new_zeros(B, S, P + D)
+                        for d, cf in coef.items():
+                            val = val + (cf.unsqueeze(-1) if torch.is_tensor(cf) else cf) * Ts[d]
+                        kT.append(val)
+                    accT = [w * kT[d] for d in range(D)] if si == 0 else [accT[d] + w * kT[d] for d in range(D)]
             y = y + (h / 6.0) * acc
             if need_jac:
-                St = St + (h / 6.0) * acc_t
-                Sy = Sy + (h / 6.0) * acc_y
+                T = [T[d] + (h / 6.0) * accT[d] for d in range(D)]
             if (k + 1) % self.substeps == 0:
                 outs.append(y[..., self.out_index])
                 if need_jac:
-                    out_t.append(St[..., self.out_index, :])
-                    out_y.append(Sy[..., self.out_index, :])
+                    out_t.append(torch.stack([T[o] for o in self.out_index], dim=2))
         X = torch.stack(outs, dim=2)  # (B, S, L, O)
         if not need_jac:
             return X, y, None
-        return X, y, (torch.stack(out_t, dim=2), torch.stack(out_y, dim=2), St, Sy)
+        Tall = torch.stack(out_t, dim=2)  # (B, S, L, O, P + D)
+        Tend = torch.stack(T, dim=2)  # (B, S, D, P + D)
+        return X, y, (Tall[..., :P], Tall[..., P:], Tend[..., :P], Tend[..., P:])
 
     # ------------------------------------------------------------------ residuals
     def _residual_parts(self, theta, X, y_end):
@@ -328,7 +373,8 @@ class ShootingProblem(LeastSquaresProblem):
         return r, J
 
 
-def _add_grad(target, grads: dict, factor) -> None:
-    """``target[..., i] += factor * g_i`` for the non-zero partial derivatives ``grads``."""
+def _acc(target: dict, grads: dict, factor) -> None:
+    """``target[i] += factor * g_i`` for the non-zero partial derivatives ``grads`` (tensors or floats)."""
     for i, g in grads.items():
-        target[..., i] += factor * g
+        v = factor * g
+        target[i] = v if i not in target else target[i] + v

@@ -5,14 +5,18 @@ from __future__ import annotations
 import csv
 import errno
 import io
+import json
+import math
 import os
 import tempfile
+from typing import Any
 
 import numpy as np
 
 from .._errors import DataError
 
-__all__ = ["read_csv_columns", "write_csv_columns", "atomic_write_bytes"]
+__all__ = ["read_csv_columns", "write_csv_columns", "atomic_write_bytes", "make_temp_dir", "current_umask",
+           "json_bytes", "json_safe", "non_finite_paths"]
 
 
 def _read_text(path: str | os.PathLike) -> str:
@@ -118,8 +122,31 @@ def _is_number(s: str) -> bool:
     return True
 
 
+def current_umask() -> int:
+    """The process's umask (from /proc on Linux, else by setting and restoring it)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)  # no other way to read it; restored at once
+    os.umask(mask)
+    return mask
+
+
+def make_temp_dir(parent: str | os.PathLike, prefix: str = ".tmp-") -> str:
+    """``tempfile.mkdtemp`` in ``parent``, but with the permissions a plain ``mkdir`` gets
+    (0777 & ~umask) instead of 0700, for a folder that is renamed into place."""
+    path = tempfile.mkdtemp(dir=os.fspath(parent), prefix=prefix)
+    os.chmod(path, 0o777 & ~current_umask())
+    return path
+
+
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and ``os.replace``."""
+    """Write ``data`` to ``path`` through a temporary file and ``os.replace``; the file gets the
+    permissions a plain ``open`` would give (0666 & ~umask), not the temporary file's 0600."""
     p = os.fspath(path)
     if os.path.isdir(p):
         raise IsADirectoryError(errno.EISDIR, "is a directory, not a file", p)
@@ -128,6 +155,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
     fd, tmp = tempfile.mkstemp(dir=directory, prefix=".tmp-", suffix=os.path.basename(p))
     try:
         with os.fdopen(fd, "wb") as fh:
+            os.fchmod(fh.fileno(), 0o666 & ~current_umask())
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
@@ -136,6 +164,41 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def json_safe(obj: Any) -> Any:
+    """``obj`` with plain JSON types only: numpy scalars and arrays as numbers and lists, tuples as
+    lists, and every non-finite float (NaN, ±Infinity, which standard JSON lacks) as None."""
+    if isinstance(obj, dict):
+        return {str(k): json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if hasattr(obj, "tolist") and not isinstance(obj, (str, bytes)):  # numpy arrays and scalars
+        return json_safe(obj.tolist())
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    return obj
+
+
+def non_finite_paths(obj: Any, path: str = "") -> list[str]:
+    """Dotted paths of the non-finite numbers in ``obj`` (what :func:`json_bytes` writes as null),
+    e.g. ``["rmse", "segments[1].rmse"]``; for a status field beside them."""
+    if isinstance(obj, dict):
+        return [p for k, v in obj.items() for p in non_finite_paths(v, f"{path}.{k}" if path else str(k))]
+    if isinstance(obj, (list, tuple)):
+        return [p for i, v in enumerate(obj) for p in non_finite_paths(v, f"{path}[{i}]")]
+    if hasattr(obj, "tolist") and not isinstance(obj, (str, bytes)):
+        return non_finite_paths(obj.tolist(), path)
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return [path]
+    return []
+
+
+def json_bytes(obj: Any, indent: int | None = 1) -> bytes:
+    """Standard JSON (RFC 8259) as UTF-8 bytes: non-finite numbers become ``null`` (never the bare
+    ``NaN``/``Infinity`` that ``json.dumps`` writes by default); name them beside it with
+    :func:`non_finite_paths` or a status field."""
+    return json.dumps(json_safe(obj), indent=indent, allow_nan=False).encode("utf-8")
 
 
 def write_csv_columns(path: str | os.PathLike, columns: dict[str, np.ndarray]) -> None:

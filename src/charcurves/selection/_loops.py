@@ -279,10 +279,10 @@ class _RunGuard:
         self.next, self.stuck, self.t, self.armed = float(self.t_eval[0]), 0, 0.0, True
 
     def _stop(self, status: str, message: str):
-        from ..simulate import SimulationStop
+        from ..simulate import SimulationStopped
 
         self.armed = False
-        raise SimulationStop(status, message, self.t)
+        raise SimulationStopped(status, message, self.t)
 
     def tick(self, t: float) -> None:
         self.t = float(t)

@@ -17,7 +17,7 @@ import numpy as np
 
 from .._errors import ConfigError, SimulationError
 
-__all__ = ["simulate_template_model", "SimulationStop"]
+__all__ = ["simulate_template_model", "SimulationStopped"]
 
 
 def _orders(template) -> dict[str, int]:
@@ -162,7 +162,7 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
             try:
                 step = np.linalg.solve(J, -R[:, 0])
             except np.linalg.LinAlgError:
-                raise SimulationStop("solver_failed", f"the equations cannot be solved for {', '.join(unknowns)} at t = {t:.4g} "
+                raise _Stop("solver_failed", f"the equations cannot be solved for {', '.join(unknowns)} at t = {t:.4g} "
                                              "(a curve coefficient vanished)", t) from None
             d = d + step
             if np.max(np.abs(step)) <= 1e-12 * (1.0 + np.max(np.abs(d))):
@@ -171,9 +171,9 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
 
     def rhs(t, y):
         if not np.all(np.isfinite(y)) or np.max(np.abs(y)) > max_abs:
-            raise SimulationStop("diverged", f"the state became non-finite or larger than {max_abs:g} at t = {t:.4g}", t)
+            raise _Stop("diverged", f"the state became non-finite or larger than {max_abs:g} at t = {t:.4g}", t)
         if time.monotonic() > deadline:
-            raise SimulationStop("timeout", f"the time budget of {time_budget:g} s ran out at t = {t:.4g}", t)
+            raise _Stop("timeout", f"the time budget of {time_budget:g} s ran out at t = {t:.4g}", t)
         top = top_derivatives(t, y)
         dy = np.empty_like(y)
         for i, (s, k) in enumerate(layout):
@@ -190,7 +190,7 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
         Y, T = sol.y, sol.t
         if not sol.success:
             status, message, t_end = "solver_failed", sol.message, float(T[-1]) if T.size else float(t_eval[0])
-    except SimulationStop as stop:
+    except _Stop as stop:
         status, message, t_end = stop.status, stop.message, stop.t
         Y, T = np.zeros((len(layout), 0)), np.zeros(0)
         if stop.status != "timeout":
@@ -199,7 +199,7 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
                 try:
                     sol = solve_ivp(rhs, (keep[0], keep[-1]), y0, method=method, t_eval=keep, rtol=rtol, atol=atol)
                     Y, T = sol.y, sol.t
-                except SimulationStop:
+                except _Stop:
                     pass
     X = np.column_stack([Y[layout.index((s, 0))] for s in states]) if T.size else np.zeros((0, len(states)))
     V = np.zeros_like(X)
@@ -215,9 +215,11 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
                                                                       for n in unknowns]})
 
 
-class SimulationStop(Exception):
-    """Ends a forward run early with a status (diverged, timeout, solver_failed...)."""
-
+class _Stop(Exception):
     def __init__(self, status: str, message: str, t: float):
         super().__init__(message)
         self.status, self.message, self.t = status, message, t
+
+
+#: Public name of the stop signal of multi-DOF simulations (caught by selection/'s outer loop).
+SimulationStopped = _Stop

@@ -25,7 +25,8 @@ import numpy as np
 from .._errors import ConfigError
 from ._curve_eval import PreparedCurve, prepare_curve
 
-__all__ = ["SimulationResult", "simulate_model", "sinusoidal_forcing", "prepare_model_curves", "STATUSES"]
+__all__ = ["SimulationResult", "simulate_model", "sinusoidal_forcing", "prepare_model_curves", "STATUSES",
+           "solver_class"]
 
 STATUSES = ("ok", "left_box", "diverged", "timeout", "solver_failed")
 

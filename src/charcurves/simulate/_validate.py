@@ -115,15 +115,19 @@ def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_co
         lines.append(f"  rows {r['rows'][0]}:{r['rows'][1]}: {r['status']}, RMSE {r['rmse']:.5g}{rel}, "
                      f"{r['seconds']:.2f} s")
     if out_dir is not None:
-        from ..io._csv import atomic_write_bytes
+        from ..io import atomic_write_bytes, json_bytes, non_finite_paths
 
         os.makedirs(out_dir, exist_ok=True)
-        doc = {"model": os.path.abspath(os.fspath(model_dir)), "csv": os.path.abspath(os.fspath(csv)), "hold": hold,
-               "substeps": int(substeps), "segments": results}
-        atomic_write_bytes(os.path.join(out_dir, "validation.json"), json.dumps(doc, indent=1).encode())
+        rel = lambda p: os.path.relpath(os.path.abspath(os.fspath(p)), os.path.abspath(out_dir)).replace(os.sep, "/")  # noqa: E731
+        failed = [r for r in results if r["status"] != "ok" or not np.isfinite(r["rmse"])]
+        doc = {"model": rel(model_dir), "csv": rel(csv), "hold": hold, "substeps": int(substeps),
+               "status": "failed" if failed else "ok", "segments": results}
+        doc["non_finite"] = non_finite_paths(doc)
+        atomic_write_bytes(os.path.join(out_dir, "validation.json"), json_bytes(doc))
         _validation_figure(os.path.join(out_dir, "validation.png"), sims)
         lines.append(f"wrote {os.path.join(out_dir, 'validation.json')}, validation.png")
-    return lines
+    failed_spans = [f"{r['rows'][0]}:{r['rows'][1]}" for r in results if r['status'] != 'ok' or not np.isfinite(r['rmse'])]
+    return lines, failed_spans
 
 
 def _validation_figure(path, sims) -> None:

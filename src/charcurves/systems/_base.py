@@ -12,14 +12,46 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .._errors import ConfigError, SimulationError
-from ..data._trajectory import Trajectory
+from ..data import Trajectory
 
-__all__ = ["BenchmarkSystem", "TOLERANCE_NAMES"]
+__all__ = ["BenchmarkSystem", "TOLERANCE_NAMES", "MAX_SIMULATE_POINTS", "MAX_SIMULATE_SPAN", "sample_times"]
+
+#: Most samples one simulation returns: 2 million rows are a CSV of about 0.25 GB and stay below
+#: about 1 GB of memory while written (10x the longest measured records charcurves fits).
+MAX_SIMULATE_POINTS = 2_000_000
+#: Longest simulated time span, in the systems' time units: LSODA takes about 1 s per 1000 time
+#: units at tight tolerances, so a simulation ends within a few minutes (the paper's longest horizon,
+#: the Lyapunov exponent's, is 5000).
+MAX_SIMULATE_SPAN = 1e5
 
 #: Named solver-tolerance presets; "tight" is resolved by each system (see ``_tight_tolerances``).
 TOLERANCE_NAMES = ("tight", "scipy-default")
 #: LSODA's own defaults in ``scipy.integrate.solve_ivp`` (what the authors' scripts ran with).
 _SCIPY_DEFAULT = (1e-3, 1e-6)
+
+
+def sample_times(t_end: Any = None, n_points: Any = None, t_eval: Any = None) -> np.ndarray:
+    """The sample times of a simulation: ``linspace(0, t_end, n_points)`` or ``t_eval``, checked
+    against :data:`MAX_SIMULATE_POINTS` and :data:`MAX_SIMULATE_SPAN` (ConfigError naming the fix)."""
+    if t_eval is None:
+        t_end = _real("t_end", t_end, positive=True)
+        if isinstance(n_points, bool) or not isinstance(n_points, numbers.Integral) or n_points < 2:
+            raise ConfigError(f"n_points must be an integer >= 2, got {n_points!r}")
+        if n_points > MAX_SIMULATE_POINTS:
+            raise ConfigError(f"n_points (--n-points) {n_points} is more than the {MAX_SIMULATE_POINTS:,} samples a "
+                              f"simulation returns (a CSV of about 0.25 GB); give at most {MAX_SIMULATE_POINTS}")
+        if t_end > MAX_SIMULATE_SPAN:
+            raise ConfigError(f"t_end (--t-end) {t_end:g} is longer than the {MAX_SIMULATE_SPAN:g} time units a "
+                              "simulation covers (about 1 s of integration per 1000); give a shorter t_end")
+        return np.linspace(0.0, t_end, int(n_points))
+    times = np.asarray(t_eval, dtype=float).reshape(-1)
+    if times.size < 2 or not np.isfinite(times).all() or (np.diff(times) <= 0).any():
+        raise ConfigError("t_eval must be at least 2 finite, strictly increasing times")
+    if times.size > MAX_SIMULATE_POINTS or times[-1] - times[0] > MAX_SIMULATE_SPAN:
+        raise ConfigError(f"t_eval has {times.size} times over {times[-1] - times[0]:g} time units; a simulation "
+                          f"returns at most {MAX_SIMULATE_POINTS:,} samples over at most {MAX_SIMULATE_SPAN:g} "
+                          "time units: split it into shorter runs")
+    return times
 
 
 def _real(name: str, value: Any, *, positive: bool = False) -> float:
@@ -151,9 +183,10 @@ class BenchmarkSystem(abc.ABC):
         Parameters
         ----------
         t_end : float
-            End time; the samples are ``linspace(0, t_end, n_points)``.
+            End time; the samples are ``linspace(0, t_end, n_points)``; at most
+            :data:`MAX_SIMULATE_SPAN` (1e5).
         n_points : int
-            Number of samples.
+            Number of samples, at most :data:`MAX_SIMULATE_POINTS` (2 million).
         x0, v0, A, Omega : float, optional
             Override the system's initial conditions / forcing (e.g. validation trajectories).
         t_eval : array_like, optional
@@ -170,15 +203,7 @@ class BenchmarkSystem(abc.ABC):
         """
         changes = {k: val for k, val in {"x0": x0, "v0": v0, "A": A, "Omega": Omega}.items() if val is not None}
         system = dataclasses.replace(self, **changes) if changes else self
-        if t_eval is None:
-            t_end = _real("t_end", t_end, positive=True)
-            if isinstance(n_points, bool) or not isinstance(n_points, numbers.Integral) or n_points < 2:
-                raise ConfigError(f"n_points must be an integer >= 2, got {n_points!r}")
-            times = np.linspace(0.0, t_end, int(n_points))
-        else:
-            times = np.asarray(t_eval, dtype=float).reshape(-1)
-            if times.size < 2 or not np.isfinite(times).all() or (np.diff(times) <= 0).any():
-                raise ConfigError("t_eval must be at least 2 finite, strictly increasing times")
+        times = sample_times(t_end, n_points, t_eval)
         rtol = system.rtol if rtol is None else _real("rtol", rtol, positive=True)
         atol = system.atol if atol is None else _real("atol", atol, positive=True)
         x, v, a = system._integrate(times, rtol, atol)

@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .._errors import ConfigError, SimulationError
-from ._base import BenchmarkSystem, solver_failed
+from ._base import BenchmarkSystem, sample_times, solver_failed
 
 __all__ = ["VanDerPolDamping", "FirstOrderSystem", "TwoDOF", "corrupt_forces"]
 
@@ -254,11 +254,9 @@ class TwoDOF:
         """Integrate with LSODA; returns a MultiTrajectory with x1, x2, F1, F2 and exact derivatives."""
         from scipy.integrate import solve_ivp
 
-        from ..data._trajectory import MultiTrajectory
+        from ..data import MultiTrajectory
 
-        times = np.linspace(0.0, float(t_end), int(n_points)) if t_eval is None else np.asarray(t_eval, dtype=float)
-        if times.size < 2 or (np.diff(times) <= 0).any():
-            raise ConfigError("the sample times must be at least 2 strictly increasing values")
+        times = sample_times(t_end, n_points, t_eval)
         p = self
 
         def rhs(t, y):

@@ -10,7 +10,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .._errors import ConfigError, DataError, SimulationError
-from ..data._trajectory import Trajectory
+from ..data import Trajectory
 from ._base import BenchmarkSystem, solver_failed
 
 __all__ = ["StickSlip", "FRICTION_LAWS"]

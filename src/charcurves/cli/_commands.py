@@ -1,0 +1,155 @@
+"""``charcurves simulate``, ``validate``, ``select`` and ``benchmark``."""
+
+from __future__ import annotations
+
+import os
+import sys
+
+from ._common import UsageError, check_seed, make_out_dir, say
+
+__all__ = ["cmd_simulate", "cmd_validate", "cmd_select", "cmd_benchmark"]
+
+
+def cmd_simulate(a) -> int:
+    from ..data import corrupt
+    from ..systems import get_system
+    from ..systems._base import sample_times
+
+    system = get_system(a.system, a.variant)
+    sample_times(a.t_end, a.n_points)  # the bounds, before any integration
+    if a.system == "two-dof":  # a multi-DOF record: t,x1,x2,v1,a1,v2,a2,F1,F2
+        return _simulate_multi(system, a, say)
+    traj = system.simulate(t_end=a.t_end, n_points=a.n_points)
+    clean = traj
+    if a.snr is not None:
+        traj = corrupt(traj, a.snr, on=a.noise_on, seed=a.seed, reference=a.noise_reference)
+    if a.noise_on == "state" and a.snr is not None:
+        # keep the contract's columns: v and a are the clean derivatives, for reference
+        traj = traj.replace(v=clean.v, a=clean.a)
+        print("note: x is noisy; v and a are the clean derivatives for reference. Fit with "
+              "--derivatives savgol|spline|spectral to estimate them from x.", file=sys.stderr)
+    traj.to_csv(a.out)
+    say(f"wrote {a.out}: {a.system} ({a.variant}), {traj.n_samples} samples"
+        + (f", SNR {a.snr:g} dB on {a.noise_on}" if a.snr is not None else ", no noise"))
+    return 0
+
+
+def cmd_select(a) -> int:
+    from ..selection._cli import run_select
+
+    return run_select(a, say=say, check_out=make_out_dir)
+
+
+def cmd_validate(a) -> int:
+    """Free runs of a saved model; exit 0 when every span's free run finished with a finite RMSE, else
+    1 with one line on stderr: the command worked and its verdict is a failure (2 stays "fix the
+    command", 130 "interrupted"), so scripts and CI can tell a model that fails from a typo."""
+    from ..simulate import validate_cli
+    from ._fit import time_column
+
+    out = validate_cli(a.model, a.csv, rows=a.rows, time_col=time_column(a.time_col), x_col=a.x_col,
+                       force_col=a.force_col, sample_rate=a.sample_rate, hold=a.hold, substeps=a.substeps,
+                       out_dir=a.out)
+    lines = list(out[0] if isinstance(out, tuple) else out)
+    for line in lines:
+        say(line)
+    failed = _failed_spans(lines)
+    if a.out is not None:
+        _standard_validation_json(os.path.join(a.out, "validation.json"))
+    if failed:
+        print(f"charcurves: validation failed: the free run of rows {', '.join(failed)} did not finish with a finite "
+              "RMSE (see the status above and in validation.json); the model does not reproduce the record",
+              file=sys.stderr, flush=True)
+        return 1
+    return 0
+
+
+def _failed_spans(lines: list[str]) -> list[str]:
+    """Row spans whose free run failed, from validate's segment lines ("  rows A:B: STATUS, RMSE x ...")."""
+    import math
+    import re
+
+    failed = []
+    for line in lines:
+        m = re.match(r"^\s+rows (\d+:\d+): (\w+), RMSE (\S+?)[,\s]", line + " ")
+        if m and (m.group(2) != "ok" or not math.isfinite(float(m.group(3)))):
+            failed.append(m.group(1))
+    return failed
+
+
+def _standard_validation_json(path: str) -> None:
+    """validation.json as standard JSON: non-finite numbers as null, a top-level ``status`` ("ok" or
+    "failed") and each segment's ``status``; rewritten only when it is not so already."""
+    import json
+
+    from ..io import atomic_write_bytes, json_bytes, non_finite_paths
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            doc = json.load(fh)  # Python's reader takes the bare Infinity/NaN that json.dumps writes
+    except (OSError, ValueError):
+        return
+    if not isinstance(doc, dict):
+        return
+    segments = doc.get("segments") or []
+    bad = non_finite_paths(doc)
+    failed = bad or any(isinstance(s, dict) and s.get("status") != "ok" for s in segments)
+    status = "failed" if failed else "ok"
+    if not bad and doc.get("status") == status:
+        return
+    doc["status"] = status
+    if bad:
+        doc["non_finite"] = bad
+    atomic_write_bytes(path, json_bytes(doc))
+
+
+def ray_address(a) -> str | None:
+    """``--address``, else ``RAY_ADDRESS`` from the environment (as Ray's own tools read it)."""
+    address = a.address if a.address is not None else os.environ.get("RAY_ADDRESS") or None
+    if address is not None and not address.strip():
+        raise UsageError("--address is empty; give the Ray cluster's address, e.g. --address auto or "
+                         "--address ray://head:10001")
+    return address
+
+
+def cmd_benchmark(a) -> int:
+    from ..experiments._benchmark import BENCHMARK_SECTIONS, SYSTEMS, parse_name_list, parse_snr_list, run_benchmark
+    from ..fitting import METHODS
+
+    systems = parse_name_list(a.systems, SYSTEMS, "systems")
+    methods = parse_name_list(a.methods, tuple(METHODS), "methods") if a.methods is not None else None
+    snr = parse_snr_list(a.snr) if a.snr is not None else None
+    skip = parse_name_list(a.skip, BENCHMARK_SECTIONS, "skip") if a.skip.strip() else ()
+    for name, value in (("--realizations", a.realizations), ("--workers", a.workers)):
+        if value is not None and value < 1:
+            raise UsageError(f"{name} must be a positive integer, got {value}")
+    if a.forward_cases is not None and a.forward_cases < 0:
+        raise UsageError(f"--forward-cases must be 0 or more, got {a.forward_cases}")
+    check_seed(a.seed)
+    if a.executor == "local" and a.address is not None:
+        raise UsageError("--address names a Ray cluster but --executor is local; drop --executor local to run on "
+                         "the cluster, or drop --address to run here")
+    address = None if a.executor == "local" else ray_address(a)  # an explicit local run ignores RAY_ADDRESS
+    executor = a.executor or ("ray" if address is not None else "local")
+    res = run_benchmark(a.out, systems=systems, methods=methods, snr_db=snr, realizations=a.realizations,
+                        full=a.full, preset=a.preset, executor=executor, workers=a.workers,
+                        forward_cases=a.forward_cases, skip=skip, progress=not a.quiet,
+                        retry_failed=a.retry_failed, base_seed=a.seed, address=address)
+    say(f"benchmark: {res}", a.quiet)
+    return 0
+
+
+def _simulate_multi(system, a, say) -> int:
+    """``charcurves simulate two-dof``: the multi-DOF record with optional noise on the forcings."""
+    from .._errors import ConfigError
+    from ..systems import corrupt_forces
+
+    if a.snr is not None and a.noise_on != "force":
+        raise ConfigError("multi-DOF records take noise on the forcings only; drop --noise-on state")
+    traj = system.simulate(t_end=a.t_end, n_points=a.n_points)
+    if a.snr is not None:
+        traj = corrupt_forces(traj, a.snr, seed=a.seed, reference=a.noise_reference or "std")
+    traj.to_csv(a.out)
+    say(f"wrote {a.out}: {system.name} ({a.variant}), {traj.n_samples} samples"
+        + (f", SNR {a.snr:g} dB on each forcing" if a.snr is not None else ", no noise"))
+    return 0

@@ -1,0 +1,104 @@
+"""What every subcommand shares: the usage error, printing, the output folder, held signals, bounds."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+
+#: Seeds are bounded to what every random generator charcurves seeds accepts: numpy's legacy
+#: ``RandomState`` and several SR engines take 32-bit seeds, and the neural trainer derives
+#: ``seed * 7919 + start`` for ``torch.Generator.manual_seed`` (64-bit), which stays in range.
+MAX_SEED = 2**32 - 1
+
+
+class UsageError(Exception):
+    """A command-line mistake: exit code 2 with one line."""
+
+
+def say(msg: str, quiet: bool = False) -> None:
+    if not quiet:
+        print(msg, flush=True)
+
+
+def warn(msg: str) -> None:
+    print(f"charcurves: warning: {msg}", file=sys.stderr, flush=True)
+
+
+def check_seed(value, option: str = "--seed") -> None:
+    """Refuse a seed outside 0 ... 2**32 - 1 (before any work is done)."""
+    if value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_SEED:
+        raise UsageError(f"{option} must be a non-negative integer of at most 32 bits (0 ... {MAX_SEED}, the range "
+                         f"every random generator charcurves seeds accepts), got {value}; e.g. {option} 0")
+
+
+def check_out_dir(out_dir: str) -> None:
+    """Refuse an --out that is a file or lies under one, before any work is done."""
+    from .._errors import ConfigError
+
+    path = os.path.abspath(out_dir)
+    while not os.path.exists(path):
+        path = os.path.dirname(path)
+    if not os.path.isdir(path):
+        what = "is a file" if path == os.path.abspath(out_dir) else f"lies under the file {path!r}"
+        raise ConfigError(f"--out {out_dir!r} {what}, not a directory; give a directory path for the results")
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise ConfigError(f"cannot create the output directory {out_dir!r} in {path!r} (permission denied); "
+                          "give a writable --out path")
+
+
+def make_out_dir(out_dir: str) -> None:
+    from .._errors import ConfigError
+
+    check_out_dir(out_dir)
+    try:
+        os.makedirs(out_dir, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"cannot create the output directory {out_dir!r} ({exc.strerror}); "
+                          "give a writable --out path") from None
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt():
+    """SIGTERM (what schedulers and ``timeout`` send) stops the command like Ctrl-C: the fit keeps
+    the best model so far and writes it, sweeps keep their finished rows. Main thread only."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+@contextlib.contextmanager
+def signals_deferred():
+    """Hold Ctrl-C and SIGTERM while results are written (so files are never left half-done); yields
+    a flag that is true when one arrived, for the caller to honour afterwards."""
+    import signal
+    import threading
+
+    hit = [False]
+    if threading.current_thread() is not threading.main_thread():
+        yield hit
+        return
+
+    def remember(signum, frame):
+        hit[0] = True
+
+    previous = {sig: signal.signal(sig, remember) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield hit
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)

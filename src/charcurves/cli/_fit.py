@@ -1,0 +1,234 @@
+"""``charcurves fit`` and ``charcurves demo``: fit a record, write result.json, the model and a summary."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+from ._common import make_out_dir, check_out_dir, say, signals_deferred, warn
+
+__all__ = ["cmd_fit", "cmd_demo", "source_path", "time_column"]
+
+
+def _progress_printer(enabled: bool):
+    """A training callback printing at most every 2 s, starting 2 s in (short fits stay silent)."""
+    if not enabled:
+        return None
+    last = [time.monotonic()]
+
+    def report(phase, step, total, loss):
+        now = time.monotonic()
+        if now - last[0] >= 2.0:
+            last[0] = now
+            print(f"  [{phase}] {step}/{total}  loss {loss:.4g}  (Ctrl-C stops and keeps the best model so far)",
+                  file=sys.stderr, flush=True)
+
+    return report
+
+
+def time_column(text: str | None) -> str | None:
+    """``--time-col none`` ignores any time column (then ``--sample-rate`` gives the times)."""
+    return None if text is None or text.strip().lower() == "none" else text
+
+
+def source_path(csv: str, out_dir: str) -> str:
+    """The record's path as ``result.json`` stores it: relative to the output folder (POSIX
+    separators), so the same record and options give the same bytes wherever the two folders lie
+    (as long as they keep their relative position); absolute only when no relative path exists
+    (another drive)."""
+    try:
+        rel = os.path.relpath(os.path.abspath(csv), os.path.abspath(out_dir))
+    except ValueError:  # Windows: another drive
+        return os.path.abspath(csv)
+    return rel.replace(os.sep, "/")
+
+
+def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_gain=False, gauge=None,
+                  gain_on="force", preset="default", seed=0, derivatives="auto", jump="auto", basis=None,
+                  keep_sticking=False, truth=None, threads=None, device="cpu", figure=True, quiet=False, source=None,
+                  sr_options=None, refine="none", refine_options=None, bands=None, bands_kind="bootstrap",
+                  bands_level=0.95, equation=None, warnings=()):
+    from ..fitting import CharacteristicCurves
+
+    est = CharacteristicCurves(
+        family=family, method=method, symmetry=sym, free_gain=free_gain, gauge=gauge, gain_on=gain_on, preset=preset,
+        derivatives=derivatives, jump=jump if jump in ("auto", "none", "") else [j for j in jump.split(",") if j.strip()],
+        basis=basis, sr_options=sr_options, exclude_sticking=not keep_sticking, random_state=seed,
+        threads=1 if threads is None else threads, device=device,
+        progress=_progress_printer(not quiet), refine=refine, refine_options=refine_options, equation=equation,
+    )
+    check_out_dir(out_dir)  # before the fit: a bad --out must not cost a long run
+    t0 = time.perf_counter()
+    if bands is not None:
+        from ..fitting import check_band_options
+
+        check_band_options(bands, bands_level)  # before the fit: a bad option must not cost a long run
+    model = est.fit(traj).model_
+    if bands is not None and not model.info.get("interrupted"):
+        from ..fitting import fit_ensembles, resolved_estimator
+        from ..selection import attach_bands, curve_bands
+
+        say(f"uncertainty bands: {bands} {bands_kind} refits ...", quiet)
+        try:
+            ens = fit_ensembles(resolved_estimator(est, model), [traj], bands, kind=bands_kind, points=[model])[0]
+        except KeyboardInterrupt:  # the main fit is finished: write it, with the bands marked skipped
+            model.info["interrupted"] = True
+            model.info["bands"] = "skipped: interrupted"
+        else:
+            attach_bands(model, curve_bands(ens, level=bands_level))
+    if "symmetry_auto" in model.info:
+        auto = model.info["symmetry_auto"]
+        say(f"--sym auto: imposed {', '.join(f'{k}={v}' for k, v in auto['applied'].items())} "
+            f"(method {auto['method']}; tests in result.json under 'symmetry')", quiet)
+    elapsed = time.perf_counter() - t0
+    with signals_deferred() as late_interrupt:
+        make_out_dir(out_dir)
+        write_results(model, out_dir, method=model.method, family=family, free_gain=free_gain, truth=truth,
+                      figure=figure, quiet=quiet, source=source, elapsed=elapsed, warnings=list(warnings))
+    model.info["interrupted_while_writing"] = late_interrupt[0]
+    return model
+
+
+def write_results(model, out_dir, *, method, family, free_gain, truth, figure, quiet, source, elapsed, warnings=()):
+    """result.json (what the inputs and the seed determine, bit-identical on reruns; standard JSON:
+    non-finite numbers as null, listed under ``non_finite``), timing.json (wall-clock times), the
+    model, curves.png and summary.txt. ``warnings`` (one line each, about the record) go to stderr
+    and to result.json ``warnings`` (an empty list when there are none)."""
+    from ..io import atomic_write_bytes, json_bytes, non_finite_paths
+    from ..metrics import curve_errors
+
+    result = model.result_dict()
+    result["interrupted"] = bool(model.info.get("interrupted", False))
+    if source:
+        result["source"] = source
+    result["warnings"] = [str(w) for w in warnings]
+    errors = None
+    if truth is not None:
+        errors = curve_errors(model, truth)
+        result["curve_rmse"] = errors
+    bad = non_finite_paths(result)
+    if bad:
+        result["non_finite"] = bad  # the numbers written as null, by path
+    for line in result["warnings"]:
+        warn(line)
+    model.save(os.path.join(out_dir, "model"))
+    atomic_write_bytes(os.path.join(out_dir, "result.json"), json_bytes(result))
+    timing = {"fit_seconds": elapsed, **model.timings()}
+    atomic_write_bytes(os.path.join(out_dir, "timing.json"), json_bytes(timing))
+    if figure:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        from ..report import plot_curves
+
+        fig = plot_curves(model, truth, title=f"{method}: {model.template.equation}")
+        fig.savefig(os.path.join(out_dir, "curves.png"), dpi=120)
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
+    from .. import __version__
+
+    lines = [f"charcurves {__version__} — {method} on the {family} family: {model.template.equation}",
+             f"fit time {elapsed:.2f} s, data loss {model.loss:.4g}, gain {model.gain:.6g}"
+             + ("" if not free_gain else " (learned)") + f", free constant {model.offset:.4g}"]
+    for name, c in model.curves.items():
+        expr = c.expression()
+        comp = c.components()
+        extra = ""
+        if "jump_height" in comp:
+            extra = f"; jump at 0: height {comp['jump_height']:.4g}, width {comp['jump_width']:.3g}"
+        lines.append(f"  {name}({c.argument}) on [{c.domain[0]:.4g}, {c.domain[1]:.4g}]"
+                     + (f" = {expr}" if expr is not None else f" ({c.kind} curve)") + extra
+                     + (f"; RMSE vs truth {errors[name]:.3e}" if errors and name in errors else ""))
+    for name, value in result.get("scalars", {}).items():  # unknown scalars of user-written templates
+        lines.append(f"  {name} = {value:.6g}")
+    if "output_error" in model.info:
+        from ..fitting import summary_lines
+
+        lines += summary_lines(model)
+    lines += [f"warning: {w}" for w in result["warnings"]]
+    skipped = _skipped_by_interrupt(model)
+    if skipped:
+        lines.append(f"interrupted: the fit finished, but Ctrl-C skipped {' and '.join(skipped)}")
+    elif result["interrupted"]:
+        lines.append("interrupted: these are the best curves reached before Ctrl-C, not a finished fit")
+    lines.append(f"wrote {os.path.join(out_dir, 'result.json')}" + (", curves.png" if figure else "")
+                 + ", timing.json, model/")
+    text = "\n".join(lines)
+    atomic_write_bytes(os.path.join(out_dir, "summary.txt"), (text + "\n").encode())
+    say(text, quiet)
+
+
+def cmd_fit(a) -> int:
+    from ..templates import read_record
+    from ._common import UsageError
+
+    if a.gauge is not None and a.family == "separable" and not a.equation and a.gauge not in ("f1", "f2"):
+        raise UsageError(f"argument --gauge: invalid choice: {a.gauge!r} (the separable family anchors 'f1' or "
+                         "'f2'; other families name their own curves) (see 'charcurves fit --help')")
+
+    traj = read_record(a.csv, family=a.family, equation=a.equation, time_col=time_column(a.time_col), x_col=a.x_col,
+                       force_col=a.force_col, sample_rate=a.sample_rate, rows=a.rows)
+    truth = None
+    if a.truth:
+        from ..systems import get_system
+
+        truth = get_system(a.truth, a.truth_variant).true_curves()
+    sr_options = {k: v for k, v in (("engine", a.sr_engine), ("generations", a.sr_generations),
+                                    ("populations", a.sr_populations), ("max_size", a.sr_max_size)) if v is not None}
+    refine_options = {k: v for k, v in (("hold", a.refine_hold), ("substeps", a.refine_substeps)) if v is not None}
+    model = fit_and_write(traj, a.out, method=a.method, family=a.family, sym=a.sym, free_gain=a.free_gain,
+                          sr_options=sr_options, gauge=a.gauge, gain_on=a.noisy_side, preset=a.preset, seed=a.seed,
+                          derivatives=a.derivatives, jump=a.jump, basis=a.basis, keep_sticking=a.keep_sticking,
+                          truth=truth, threads=a.threads, device=a.device, figure=not a.no_figure, quiet=a.quiet,
+                          source=source_path(a.csv, a.out), refine=a.refine, refine_options=refine_options,
+                          bands=a.bands, bands_kind=a.bands_kind, bands_level=a.bands_level, equation=a.equation,
+                          warnings=traj.quality_warnings())
+    return interrupted_exit(model, a.out)
+
+
+def _skipped_by_interrupt(model) -> list[str]:
+    """The steps after a finished fit that Ctrl-C skipped (post-SR, bands); [] when the training itself
+    was interrupted (then the curves are the best reached, and that is what is reported)."""
+    if not model.info.get("interrupted") or "interrupted" in str(model.info.get("stopped_by", "")):
+        return []
+    return [label for key, label in (("post_sr", "post-SR"), ("refine", "the output-error refinement"),
+                                     ("bands", "the uncertainty bands"))
+            if model.info.get(key) == "skipped: interrupted"]
+
+
+def interrupted_exit(model, out_dir: str) -> int:
+    """0, or 130 with one line when Ctrl-C or SIGTERM stopped the fit (the best model so far was written)."""
+    if model.info.pop("interrupted_while_writing", False) and not model.info.get("interrupted"):
+        print(f"charcurves: interrupted while writing; the finished fit was written completely to {out_dir}",
+              file=sys.stderr, flush=True)
+        return 130
+    if not model.info.get("interrupted"):
+        return 0
+    skipped = _skipped_by_interrupt(model)
+    if skipped:
+        print(f"charcurves: interrupted; the fit had finished and was written to {out_dir}, without "
+              f"{' and '.join(skipped)} (result.json marked interrupted); rerun to compute them",
+              file=sys.stderr, flush=True)
+        return 130
+    print(f"charcurves: interrupted; kept the best model so far in {os.path.join(out_dir, 'model')} "
+          "(result.json marked interrupted); rerun to finish the fit", file=sys.stderr, flush=True)
+    return 130
+
+
+def cmd_demo(a) -> int:
+    from ..data import corrupt
+    from ..systems import get_system
+
+    t0 = time.perf_counter()
+    system = get_system("duffing")
+    traj = corrupt(system.simulate(), 20.0, on="force", seed=a.seed)
+    make_out_dir(a.out)
+    traj.to_csv(os.path.join(a.out, "duffing_20dB.csv"))
+    say(f"simulated the Duffing oscillator (paper parameters), 20 dB noise on the forcing -> "
+        f"{os.path.join(a.out, 'duffing_20dB.csv')}")
+    model = fit_and_write(traj, a.out, method="nn-cc+sym", sym="f1=odd,f2=odd", seed=a.seed,
+                          truth=system.true_curves(), threads=a.threads, warnings=traj.quality_warnings())
+    say(f"demo finished in {time.perf_counter() - t0:.1f} s")
+    return interrupted_exit(model, a.out)

@@ -1,0 +1,168 @@
+"""The argument parser of ``charcurves`` (one line per error, exit 2, no usage dump)."""
+
+from __future__ import annotations
+
+import argparse
+
+from ._common import MAX_SEED, UsageError
+
+__all__ = ["build_parser"]
+
+_SEED_HELP = f"random seed, 0 ... {MAX_SEED} (default 0)"
+_TIME_HELP = "time column (default t); none: ignore any time column and use --sample-rate"
+_RATE_HELP = "Hz, for a file without a time column (with one: drop it, or pass --time-col none)"
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, exit 2, no usage dump
+        raise UsageError(f"{message} (see '{self.prog} --help')")
+
+
+def _rows(text: str) -> slice:
+    try:
+        start, stop = text.split(":")
+        return slice(int(start) if start.strip() else None, int(stop) if stop.strip() else None)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--rows must be START:STOP with integers, e.g. 100:5000, got {text!r}") from None
+
+
+def build_parser(version: str) -> argparse.ArgumentParser:
+    from ..fitting import METHODS
+    from ..systems import MAX_SIMULATE_POINTS, MAX_SIMULATE_SPAN
+    from ..systems import SYSTEM_NAMES
+
+    p = _Parser(prog="charcurves", description="Equation discovery with characteristic curves.")
+    p.add_argument("--version", action="version", version=f"charcurves {version}")
+    sub = p.add_subparsers(dest="command", parser_class=_Parser)
+
+    s = sub.add_parser("simulate", help="simulate a benchmark system to a CSV file (t,x,v,a,F; two-dof: "
+                                        "t,x1,x2,v1,a1,v2,a2,F1,F2)")
+    s.add_argument("system", choices=SYSTEM_NAMES)
+    s.add_argument("--out", required=True, help="output CSV file")
+    s.add_argument("--snr", type=float, default=None, help="noise level in dB (default: no noise)")
+    s.add_argument("--noise-on", choices=["force", "state"], default="force")
+    s.add_argument("--noise-reference", choices=["std", "rms"], default=None,
+                   help="sigma of the clean signal: std (paper) or rms (authors' scripts, forcing)")
+    s.add_argument("--seed", type=int, default=0, help=_SEED_HELP)
+    s.add_argument("--variant", default="paper", help="paper (default), scripts, or smooth (stick-slip)")
+    s.add_argument("--t-end", type=float, default=40.0,
+                   help=f"end time (default 40; at most {MAX_SIMULATE_SPAN:g}: about 1 s of integration per 1000)")
+    s.add_argument("--n-points", type=int, default=1000,
+                   help=f"samples (default 1000; at most {MAX_SIMULATE_POINTS:,}, a CSV of about 0.25 GB)")
+
+    f = sub.add_parser("fit", help="identify the characteristic curves of a record")
+    f.add_argument("csv", help="CSV file with a header row")
+    f.add_argument("--out", required=True, help="output directory")
+    f.add_argument("--family", default="separable",
+                   help="separable (default), first-order, position-damping or two-dof (CSV t,x1,x2,F1,F2)")
+    f.add_argument("--equation", default=None,
+                   help="your own template instead of a family, e.g. \"x'' + a1*x' + f1(x) = F\" "
+                        "(several equations separated by ';')")
+    f.add_argument("--method", default="nn-cc+sym", help=f"one of: {', '.join(METHODS)}")
+    f.add_argument("--sym", default=None, help="parity priors, e.g. f1=odd,f2=odd; auto: test the parity of "
+                                               "unconstrained curves and impose what the data support")
+    f.add_argument("--free-gain", action="store_true", help="learn the input gain g")
+    f.add_argument("--gauge", default=None,
+                   help="curve(s) anchored at 0, e.g. f1 (default: the family's, separable f2, two-dof f2,f4)")
+    f.add_argument("--noisy-side", choices=["force", "acceleration"], default="force",
+                   help="with --free-gain: which measured side carries the noise and is regressed on "
+                        "(force: the paper's loss; acceleration: noise on the measured state)")
+    f.add_argument("--preset", default="default", help="training preset: default or paper")
+    f.add_argument("--seed", type=int, default=0, help=_SEED_HELP)
+    f.add_argument("--derivatives", default="auto", help="auto, given, savgol, spline, spectral or fd")
+    f.add_argument("--jump", default="auto",
+                   help="curves with a learned jump at 0, e.g. f1 (dry friction); auto (default): on the "
+                        "velocity curve when the record has sticking phases; none: never")
+    f.add_argument("--basis", default=None, help="parametric basis, e.g. \"f1=z; f2=z, z**3\"")
+    f.add_argument("--sr-engine", default=None, help="symbolic-regression engine: operon (default) or pysr")
+    f.add_argument("--sr-generations", type=int, default=None, help="SR generations (iterations)")
+    f.add_argument("--sr-populations", type=int, default=None)
+    f.add_argument("--sr-max-size", type=int, default=None, help="largest expression size (default 20)")
+    f.add_argument("--keep-sticking", action="store_true", help="fit samples where x' = 0 over a run too")
+    f.add_argument("--time-col", default="t", help=_TIME_HELP)
+    f.add_argument("--x-col", default="x")
+    f.add_argument("--force-col", default="F")
+    f.add_argument("--sample-rate", type=float, default=None, help=_RATE_HELP)
+    f.add_argument("--rows", type=_rows, default=None, help="START:STOP rows to use")
+    f.add_argument("--truth", default=None,
+                   help=f"benchmark system ({', '.join(SYSTEM_NAMES)}) to compare the curves with")
+    f.add_argument("--truth-variant", default="paper")
+    f.add_argument("--threads", type=int, default=None, help="torch threads (default: 1 per process)")
+    f.add_argument("--device", default="cpu")
+    f.add_argument("--no-figure", action="store_true")
+    f.add_argument("--quiet", action="store_true")
+    f.add_argument("--refine", default="auto",
+                   help="output-error refinement of closed-form curves, gain and constant by free-run simulation: "
+                        "output-error, none, or auto (default: for --free-gain fits of closed forms on estimated "
+                        "derivatives, i.e. measured records)")
+    f.add_argument("--refine-hold", default=None, help="input between samples in the free run: linear (default), zoh, "
+                                                        "bandlimited")
+    f.add_argument("--refine-substeps", type=int, default=None, help="RK4 steps per sample in the free run (default 4)")
+    f.add_argument("--bands", type=int, default=None, metavar="N",
+                   help="uncertainty bands of the curves from an ensemble of N refits (result.json, curves.png)")
+    f.add_argument("--bands-kind", choices=["bootstrap", "seeds"], default="bootstrap",
+                   help="ensemble of --bands: wild residual bootstrap of the forcing (default) or training seeds")
+    f.add_argument("--bands-level", type=float, default=0.95, help="coverage level of --bands (default 0.95)")
+
+    v = sub.add_parser("validate", help="free-run a saved model on a record; RMSE and a figure")
+    v.add_argument("model", help="model directory (the model/ that fit writes)")
+    v.add_argument("csv", help="CSV file with a header row")
+    v.add_argument("--rows", type=_rows, action="append", default=None,
+                   help="START:STOP rows of a test segment (repeat for several; default: the whole file)")
+    v.add_argument("--time-col", default="t", help=_TIME_HELP)
+    v.add_argument("--x-col", default="x")
+    v.add_argument("--force-col", default="F")
+    v.add_argument("--sample-rate", type=float, default=None, help=_RATE_HELP)
+    v.add_argument("--hold", default=None, help="linear, zoh or bandlimited (default: the model's refinement's, "
+                                                "else linear)")
+    v.add_argument("--substeps", type=int, default=None, help="RK4 steps per sample (default: as refined, else 4)")
+    v.add_argument("--out", default=None, help="directory for validation.json and validation.png")
+
+    d = sub.add_parser("demo", help="simulate Duffing at 20 dB, fit NN-CC+sym, write results")
+    d.add_argument("--out", default="charcurves-demo")
+    d.add_argument("--seed", type=int, default=0, help=_SEED_HELP)
+    d.add_argument("--threads", type=int, default=None)
+
+    sel = sub.add_parser("select", help="model selection: run the three validation loops on candidate families")
+    sel.add_argument("csv", nargs="+", help="CSV records of one system (other initial conditions or forcings)")
+    sel.add_argument("--families", default="separable,position-damping",
+                     help="candidate families, simplest first (default separable,position-damping)")
+    sel.add_argument("--method", default="nn-cc", help="fitting method for every family (default nn-cc)")
+    sel.add_argument("--members", type=int, default=6, help="bootstrap members per record (default 6)")
+    sel.add_argument("--snr", type=float, default=None, help="known SNR of the forcing in dB (default: estimated)")
+    sel.add_argument("--all", action="store_true", help="test every family and run every loop (more figures)")
+    sel.add_argument("--out", default=None, help="directory for selection.json and selection.csv")
+    sel.add_argument("--seed", type=int, default=0, help=_SEED_HELP)
+    sel.add_argument("--derivatives", default="auto", help="auto, given, savgol, spline, spectral or fd")
+    sel.add_argument("--threads", type=int, default=None, help="torch threads (default 1)")
+    sel.add_argument("--time-col", default="t")
+    sel.add_argument("--x-col", default="x")
+    sel.add_argument("--force-col", default="F")
+    sel.add_argument("--quiet", action="store_true")
+
+    b = sub.add_parser("benchmark", help="run the paper's study (sweeps, tables, figures) into a report")
+    b.add_argument("--out", required=True, help="output directory (results.sqlite there makes reruns resume)")
+    b.add_argument("--systems", default="duffing,stick-slip", help="comma-separated: duffing,stick-slip")
+    b.add_argument("--methods", default=None,
+                   help=f"comma-separated methods (default: all twelve: {', '.join(METHODS)})")
+    b.add_argument("--snr", default=None,
+                   help="comma-separated SNR levels in dB (default 40,20,0; --full: 40..-20)")
+    b.add_argument("--realizations", type=int, default=None,
+                   help="noise realisations per level (default 2; --full: 10)")
+    b.add_argument("--full", action="store_true", help="the paper's grid: 61 SNR levels x 10 realisations")
+    b.add_argument("--preset", default="default", help="training preset of the neural methods: default or paper")
+    b.add_argument("--executor", choices=["local", "ray"], default=None,
+                   help="local processes (default) or ray (default when --address or RAY_ADDRESS is given)")
+    b.add_argument("--address", default=None,
+                   help="Ray cluster to run on, e.g. auto or ray://head:10001 (default: $RAY_ADDRESS when set); "
+                        "see docs/cluster.md")
+    b.add_argument("--seed", type=int, default=0, help=f"base seed of every dataset, fit and validation case, "
+                                                       f"0 ... {MAX_SEED} (default 0)")
+    b.add_argument("--workers", type=int, default=None, help="parallel workers (default: the CPU count)")
+    b.add_argument("--forward-cases", type=int, default=None, help="validation cases per model (default 2; --full: 10)")
+    b.add_argument("--skip", default="", help="side studies to leave out: forward,lyapunov,miw,sensitivity,appendix-f")
+    b.add_argument("--retry-failed", action="store_true", help="also rerun jobs stored as failed")
+    b.add_argument("--quiet", action="store_true")
+    return p
+
+

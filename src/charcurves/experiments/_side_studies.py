@@ -1,0 +1,147 @@
+"""The benchmark's side studies: the Lyapunov exponent, MIW ensembles (Table 1), the NN-CC
+sensitivity (Appendix C) and noise on the state (Appendix F). Each stores its result in
+``extras.json`` (or its own results store) under a signature of its settings, so reruns skip it."""
+
+from __future__ import annotations
+
+import os
+import time
+from typing import Any
+
+from ._benchmark import BENCHMARK_TAG, MIW_METHODS, _Context, _Extras, _log, _sr_budget, _write_csv, results_frame
+
+__all__ = ["lyapunov", "miw_study", "sensitivity", "appendix_f", "SENSITIVITY_VARIATIONS", "SENSITIVITY_FULL_EXTRA"]
+
+
+def _dataset(ctx: _Context, system: str, snr: float, realization: int, noise_on: str = "force"):
+    """The exact noisy record the sweep's jobs of (system, snr, realization) saw."""
+    from ..data import corrupt
+    from ..systems import get_system
+    from ._sweep import dataset_seed
+
+    variant = ctx.sweep.variant_of(system)
+    clean = get_system(system, variant).simulate(ctx.t_end, ctx.n_points)
+    seed = dataset_seed("noise", system, variant, noise_on, snr, realization, ctx.base_seed)
+    return clean, corrupt(clean, snr, on=noise_on, seed=seed)
+
+
+def lyapunov(ctx: _Context, extras: _Extras) -> None:
+    from ..metrics import largest_lyapunov_exponent
+    from ..systems import get_system
+
+    system = get_system("duffing", ctx.sweep.variant_of("duffing"))
+    sig = {"variant": system.variant, "params": system.parameters(), "t_total": ctx.sizes["lyapunov_time"]}
+    if extras.get("lyapunov", sig) is not None:
+        return
+    _log(ctx.progress, f"Lyapunov exponent of the true Duffing over {ctx.sizes['lyapunov_time']:g} time units")
+    t0 = time.perf_counter()
+    p = system.parameters()
+    lam = largest_lyapunov_exponent(system.f1, system.f2, system.forcing, p["x0"], p["v0"],
+                                    t_total=float(ctx.sizes["lyapunov_time"]), rtol=1e-9, atol=1e-11)
+    extras.put("lyapunov", sig, {"lambda_max": lam, "T_L": 1.0 / lam if lam > 0 else float("nan"),
+                                 "seconds": time.perf_counter() - t0})
+
+
+def _estimator(ctx: _Context, system: str, method: str, preset=None, **extra_opts):
+    from ..fitting import CharacteristicCurves
+
+    opts = ctx.sweep.fit_options(system, method)
+    opts.update(extra_opts)
+    opts.setdefault("threads", 1)
+    return CharacteristicCurves(method=method, preset=preset if preset is not None else ctx.preset, **opts)
+
+
+def miw_study(ctx: _Context, extras: _Extras) -> None:
+    """Table 1: f2 residuals at the training points, (i) K training seeds on one 20 dB dataset,
+    (ii) one run on each of R noise realisations; MIW_range and MIW_99 of each ensemble."""
+    from ..metrics import curve_residuals, miw
+    from ..systems import get_system
+
+    truth = get_system("duffing", ctx.sweep.variant_of("duffing")).true_curves()
+    k, r = int(ctx.sizes["miw_seeds"]), int(ctx.sizes["miw_realizations"])
+    for method in [m for m in MIW_METHODS if m in ctx.methods]:
+        sig = {"method": method, "preset": ctx.preset, "seeds": k, "realizations": r, "base_seed": ctx.base_seed,
+               "n_points": ctx.n_points, "t_end": ctx.t_end}
+        if extras.get(f"miw:{method}:{ctx.preset}", sig) is not None:
+            continue
+        _log(ctx.progress, f"MIW ensembles of {method}: {k} seeds on one dataset, {r} noise realisations (20 dB)")
+        t0 = time.perf_counter()
+        est = _estimator(ctx, "duffing", method)
+        _, data0 = _dataset(ctx, "duffing", 20.0, 0)
+        seed_models = est.fit_many([data0] * k, seeds=list(range(k)))
+        z, res = zip(*(curve_residuals(m, data0, truth, "f2") for m in seed_models))
+        m_seeds = miw(list(z), list(res))
+        t1 = time.perf_counter()
+        datasets = [_dataset(ctx, "duffing", 20.0, i)[1] for i in range(r)]
+        real_models = est.fit_many(datasets, seeds=list(range(r)))
+        z2, res2 = zip(*(curve_residuals(m, d, truth, "f2") for m, d in zip(real_models, datasets)))
+        m_real = miw(list(z2), list(res2))
+        extras.put(f"miw:{method}:{ctx.preset}", sig, {
+            "seeds": {"miw_range": m_seeds.miw_range, "miw_99": m_seeds.miw_99, "n": k, "seconds": t1 - t0},
+            "realizations": {"miw_range": m_real.miw_range, "miw_99": m_real.miw_99, "n": r,
+                             "seconds": time.perf_counter() - t1}})
+
+
+#: Appendix C variations tried on the run's preset (a few of the paper's rows that are quick here).
+SENSITIVITY_VARIATIONS: tuple[tuple[str, Any], ...] = (
+    ("activation", "softplus"), ("activation", "tanh"), ("activation", "relu"),
+    ("adam_lr", 1e-3), ("adam_lr", 1e-2), ("adam_lr", 1e-1),
+    ("width", 5), ("width", 10), ("width", 25),
+)
+#: Added with ``full``: a 100-wide network costs ~1-2 min per fit with the default preset's LM.
+SENSITIVITY_FULL_EXTRA: tuple[tuple[str, Any], ...] = (("width", 100),)
+
+
+def sensitivity(ctx: _Context, extras: _Extras) -> None:
+    """Appendix C, feasible part: NN-CC on one 20 dB dataset per system, one setting changed at a time."""
+    from ..fitting import get_preset
+    from ..metrics import curve_errors
+    from ..systems import get_system
+
+    base = get_preset(ctx.preset)
+    for system in ctx.systems:
+        variations = SENSITIVITY_VARIATIONS + (SENSITIVITY_FULL_EXTRA if ctx.full else ())
+        sig = {"system": system, "preset": base.to_dict(), "base_seed": ctx.base_seed, "n_points": ctx.n_points,
+               "variations": [list(v) for v in variations]}
+        if extras.get(f"sensitivity:{system}:{ctx.preset}", sig) is not None:
+            continue
+        _log(ctx.progress, f"Appendix C sensitivity of NN-CC on {system} (20 dB, one dataset)")
+        truth = get_system(system, ctx.sweep.variant_of(system)).true_curves()
+        _, data = _dataset(ctx, system, 20.0, 0)
+        rows = []
+        for setting, value in variations:
+            change = {"hidden": (int(value),) * len(base.hidden)} if setting == "width" else {setting: value}
+            preset = base.replace(name=f"{base.name}*", **change)
+            t0 = time.perf_counter()
+            try:
+                model = _estimator(ctx, system, "nn-cc", preset=preset).fit(data).model_
+                err = curve_errors(model, truth)
+                rows.append({"setting": setting, "value": value, "loss": float(model.loss), "rmse_f1": err.get("f1"),
+                             "rmse_f2": err.get("f2"), "seconds": time.perf_counter() - t0,
+                             "is_default": _is_base(base, setting, value)})
+            except Exception as exc:  # noqa: BLE001 - a diverging setting is a result, not a crash
+                rows.append({"setting": setting, "value": value, "error": f"{type(exc).__name__}: {exc}"[:300],
+                             "seconds": time.perf_counter() - t0, "is_default": _is_base(base, setting, value)})
+        extras.put(f"sensitivity:{system}:{ctx.preset}", sig, rows)
+
+
+def _is_base(base, setting: str, value) -> bool:
+    if setting == "width":
+        return all(h == int(value) for h in base.hidden)
+    return getattr(base, setting) == value
+
+
+def appendix_f(ctx: _Context) -> None:
+    """Appendix F: noise on x, derivatives by Savitzky-Golay, CC errors only (its own store)."""
+    from ._sweep import Sweep, run_sweep
+
+    reals = min(int(ctx.sizes["realizations"]), int(ctx.sizes["appendix_f_realizations"]))
+    sweep = Sweep(systems=ctx.systems, methods=ctx.methods, snr_db=ctx.sizes["snr_db"],
+                  realizations=reals, noise_on="state", options={"derivatives": "savgol"},
+                  method_options=_sr_budget(ctx.methods, ctx.sizes["sr_generations"]),
+                  preset=ctx.preset, t_end=ctx.t_end, n_points=ctx.n_points, base_seed=ctx.base_seed,
+                  tag=BENCHMARK_TAG)
+    _log(ctx.progress, f"Appendix F (noise on x, Savitzky-Golay): {len(sweep.jobs())} jobs")
+    store = os.path.join(ctx.out_dir, "appendix_f.sqlite")
+    run_sweep(sweep, store, executor=ctx.executor, workers=ctx.workers, progress=ctx.progress, address=ctx.address)
+    _write_csv(results_frame(store, noise_on="state"), os.path.join(ctx.out_dir, "appendix_f.csv"))

@@ -1,0 +1,225 @@
+"""Issue 25, the command line under hostile use: record warnings in result.json, a relative source
+path, standard JSON, the user's umask on every file written, SIGTERM treated like Ctrl-C, bounded
+simulations."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import stat
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from charcurves.cli import main
+
+FAST = ["--method", "poly-cc", "--no-figure", "--quiet"]
+
+
+def _write(path, columns) -> str:
+    np.savetxt(path, np.column_stack(list(columns.values())), delimiter=",", header=",".join(columns),
+               comments="", fmt="%.17g")
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def record():
+    from charcurves.systems import get_system
+
+    tr = get_system("duffing").simulate()
+    return {"t": np.asarray(tr.t), "x": np.asarray(tr.x), "F": np.asarray(tr.F)}
+
+
+def _fit(capsys, csv, out, *extra):
+    capsys.readouterr()
+    code = main(["fit", str(csv), "--out", str(out), *FAST, *extra])
+    captured = capsys.readouterr()
+    return code, captured.err, json.loads((out / "result.json").read_text()) if code == 0 else None
+
+
+# ---------------------------------------------------------------------- warnings about the record
+def test_a_clean_record_has_an_empty_warnings_list(tmp_path, capsys, record):
+    code, err, res = _fit(capsys, _write(tmp_path / "d.csv", record), tmp_path / "o")
+    assert code == 0 and res["warnings"] == [] and "warning" not in err
+
+
+def test_noise_for_x_is_warned_on_stderr_and_in_result_json(tmp_path, capsys, record):
+    noise = np.random.default_rng(0).normal(size=record["t"].size)
+    code, err, res = _fit(capsys, _write(tmp_path / "n.csv", {**record, "x": noise}), tmp_path / "o")
+    assert code == 0
+    assert len(res["warnings"]) == 1 and res["warnings"][0].startswith("x looks like white noise (lag-1 "
+                                                                       "autocorrelation 0.0")
+    assert f"charcurves: warning: {res['warnings'][0]}\n" in err
+    assert f"warning: {res['warnings'][0]}" in (tmp_path / "o" / "summary.txt").read_text()
+
+
+def test_a_gap_in_the_time_stamps_is_warned(tmp_path, capsys, record):
+    t = record["t"].copy()
+    t[600:] += 1000.0
+    code, err, res = _fit(capsys, _write(tmp_path / "g.csv", {**record, "t": t}), tmp_path / "o",
+                          "--derivatives", "spline")
+    assert code == 0
+    assert res["warnings"] == [next(w for w in res["warnings"] if w.startswith("the time step at row 600 is"))]
+    assert "times the median step (a gap of 1000.04" in res["warnings"][0] and "--rows" in res["warnings"][0]
+    assert err.count("charcurves: warning: the time step at row 600") == 1
+
+
+def test_an_all_zero_forcing_with_a_fixed_gain_is_a_free_response_and_warned(tmp_path, capsys):
+    """x'' + f1(x') + f2(x) = 0 with the unit mass: the curves are identified from a free decay,
+    so it is fitted, with a warning that names the forcing column."""
+    from charcurves.systems import get_system
+
+    free = get_system("duffing", A=0.0, x0=1.5, v0=0.0).simulate()
+    csv = _write(tmp_path / "z.csv", {"t": free.t, "x": free.x, "v": free.v, "a": free.a, "F": free.F})
+    code, err, res = _fit(capsys, csv, tmp_path / "o", "--truth", "duffing")
+    assert code == 0 and not np.any(free.F)
+    assert res["warnings"] == ["the forcing F is zero everywhere: the curves then describe a free response "
+                               "(x'' + f1 + f2 = 0); check --force-col if the system was forced"]
+    assert res["curve_rmse"]["f1"] < 1e-8 and res["curve_rmse"]["f2"] < 1e-8  # both curves, from the decay alone
+
+
+def test_an_all_zero_forcing_with_a_free_gain_is_refused(tmp_path, capsys, record):
+    csv = _write(tmp_path / "z.csv", {**record, "F": 0 * record["F"]})
+    capsys.readouterr()
+    code = main(["fit", csv, "--out", str(tmp_path / "o"), *FAST, "--free-gain"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "gain g cannot be told apart" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_quality_warnings_of_a_multi_dof_record():
+    from charcurves.systems import get_system
+
+    two = get_system("two-dof").simulate()
+    assert two.quality_warnings() == []
+    noisy = two.replace(states={"x1": two.states["x1"], "x2": np.random.default_rng(1).normal(size=two.n_samples)},
+                        forces={k: 0 * v for k, v in two.forces.items()})
+    warnings = noisy.quality_warnings()
+    assert [w.split(" (")[0] for w in warnings] == ["x2 looks like white noise", "the forcings F1, F2 are zero "
+                                                                                  "everywhere: the curves then "
+                                                                                  "describe a free response; check "
+                                                                                  "the forcing columns if the system "
+                                                                                  "was forced"]
+
+
+# ---------------------------------------------------------------------- result.json: source, JSON
+def test_source_is_relative_to_the_output_folder_so_a_moved_pair_gives_the_same_bytes(tmp_path, capsys, record,
+                                                                                     monkeypatch):
+    a, b = tmp_path / "a", tmp_path / "elsewhere" / "b"
+    for root in (a, b):
+        root.mkdir(parents=True)
+        _write(root / "d.csv", record)
+    monkeypatch.chdir(a)
+    assert main(["fit", "d.csv", "--out", "out", *FAST]) == 0
+    monkeypatch.chdir(tmp_path)
+    assert main(["fit", str(b / "d.csv"), "--out", str(b / "out"), *FAST]) == 0
+    first, second = (root / "out" / "result.json" for root in (a, b))
+    assert json.loads(first.read_text())["source"] == "../d.csv"
+    assert first.read_bytes() == second.read_bytes()
+
+
+def test_json_bytes_writes_standard_json_with_null_for_non_finite_numbers():
+    from charcurves.io import json_bytes, non_finite_paths
+
+    doc = {"rmse": float("inf"), "segments": [{"rmse": 1.5}, {"rmse": np.float64("nan")}], "a": np.arange(2),
+           "ok": -float("inf") if False else 0.25}
+    text = json_bytes(doc).decode()
+    assert "Infinity" not in text and "NaN" not in text
+    assert json.loads(text) == {"rmse": None, "segments": [{"rmse": 1.5}, {"rmse": None}], "a": [0, 1], "ok": 0.25}
+    assert non_finite_paths(doc) == ["rmse", "segments[1].rmse"]
+    json.loads(text, parse_constant=lambda c: pytest.fail(f"non-standard constant {c}"))
+
+
+# ---------------------------------------------------------------------- permissions
+@pytest.mark.parametrize("umask", [0o022, 0o002, 0o077])
+def test_every_file_and_folder_written_follows_the_umask(tmp_path, record, umask):
+    csv = _write(tmp_path / "d.csv", record)
+    out = tmp_path / "o"
+    code = subprocess.run([sys.executable, "-c", f"import os, sys; os.umask({umask}); from charcurves.cli import main; "
+                           f"sys.exit(main(sys.argv[1:]))", "fit", csv, "--out", str(out), *FAST],
+                          env=dict(os.environ, OMP_NUM_THREADS="1"), capture_output=True, text=True, timeout=300)
+    assert code.returncode == 0, code.stderr
+    written = [p for p in out.rglob("*")]
+    assert {p.name for p in written} >= {"result.json", "timing.json", "summary.txt", "model.json"}
+    for p in written:
+        mode = stat.S_IMODE(p.stat().st_mode)
+        assert mode == (0o777 if p.is_dir() else 0o666) & ~umask, (p, oct(mode))
+
+
+def test_atomic_write_and_temporary_folders_follow_the_umask(tmp_path):
+    from charcurves.io import atomic_write_bytes, make_temp_dir
+
+    old = os.umask(0o027)
+    try:
+        atomic_write_bytes(tmp_path / "f.txt", b"x")
+        folder = make_temp_dir(tmp_path, ".tmp-")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "f.txt").stat().st_mode) == 0o640
+    assert stat.S_IMODE(os.stat(folder).st_mode) == 0o750
+    assert sorted(os.listdir(tmp_path)) == sorted(["f.txt", os.path.basename(folder)])  # no temporary file left
+
+
+# ---------------------------------------------------------------------- SIGTERM
+def test_sigterm_mid_training_keeps_the_best_model_so_far_and_exits_130(tmp_path, record):
+    """What schedulers and ``timeout`` send: like Ctrl-C, the best model so far is written completely and
+    marked interrupted. The signal is sent when the trainer reports progress (the paper preset trains for
+    minutes), so it always lands inside training."""
+    from charcurves import load_model
+
+    csv = _write(tmp_path / "d.csv", record)
+    out = tmp_path / "o"
+    proc = subprocess.Popen([sys.executable, "-m", "charcurves", "fit", csv, "--out", str(out), "--preset", "paper",
+                             "--no-figure"], env=dict(os.environ, OMP_NUM_THREADS="1"), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        lines = []
+        deadline = time.monotonic() + 240
+        while time.monotonic() < deadline:
+            line = proc.stderr.readline()
+            lines.append(line)
+            if not line or line.lstrip().startswith("["):
+                break
+        assert lines[-1].lstrip().startswith("["), "".join(lines)  # training reports progress: it is running
+        proc.send_signal(signal.SIGTERM)
+        stdout, rest = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, "".join(lines) + rest
+    assert rest.strip().splitlines()[-1].startswith("charcurves: interrupted; kept the best model so far in ")
+    res = json.loads((out / "result.json").read_text())
+    assert res["interrupted"] is True
+    model = load_model(out / "model")
+    assert set(model.curves) == {"f1", "f2"} and np.isfinite(model.curves["f2"](np.linspace(-1, 1, 5))).all()
+    assert sorted(p.name for p in out.iterdir()) == ["model", "result.json", "summary.txt", "timing.json"]
+
+
+# ---------------------------------------------------------------------- validate
+def test_validate_reports_a_failed_free_run_with_exit_1_and_writes_standard_json(tmp_path, capsys, record):
+    """Issue 25: "RMSE inf" with exit 0, and bare Infinity in validation.json. A forcing 1e8 times the
+    training one makes the free run diverge: exit 1 (the command worked, the verdict is a failure), one
+    stderr line, and standard JSON with null for the non-finite numbers and status "failed"."""
+    train = _write(tmp_path / "d.csv", record)
+    assert main(["fit", train, "--out", str(tmp_path / "fit"), "--method", "parametric", "--basis",
+                 "f1=z; f2=z, z**3", "--no-figure", "--quiet"]) == 0
+    forced = _write(tmp_path / "big.csv", {**record, "F": 1e8 * record["F"]})
+    capsys.readouterr()
+    code = main(["validate", str(tmp_path / "fit" / "model"), forced, "--out", str(tmp_path / "v")])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert err == ("charcurves: validation failed: the free run of rows 0:1000 did not finish with a finite RMSE "
+                   "(see the status above and in validation.json); the model does not reproduce the record\n")
+    text = (tmp_path / "v" / "validation.json").read_text()
+    doc = json.loads(text, parse_constant=lambda c: pytest.fail(f"non-standard JSON constant {c}"))
+    assert doc["status"] == "failed" and doc["segments"][0]["status"] == "diverged"
+    assert doc["segments"][0]["rmse"] is None and "segments[0].rmse" in doc["non_finite"]
+    # the same model on its own record: exit 0, status ok
+    assert main(["validate", str(tmp_path / "fit" / "model"), train, "--rows", "0:500", "--out",
+                 str(tmp_path / "ok")]) == 0
+    assert json.loads((tmp_path / "ok" / "validation.json").read_text())["status"] == "ok"
