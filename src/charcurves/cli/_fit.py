@@ -47,8 +47,8 @@ def source_path(csv: str, out_dir: str) -> str:
 def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_gain=False, gauge=None,
                   gain_on="force", preset="default", seed=0, derivatives="auto", jump="auto", basis=None,
                   keep_sticking=False, truth=None, threads=None, device="cpu", figure=True, quiet=False, source=None,
-                  sr_options=None, refine="none", refine_options=None, bands=None, bands_kind="bootstrap",
-                  bands_level=0.95, equation=None, warnings=()):
+                  sr_options=None, refine=None, refine_options=None, bands=None, bands_kind="bootstrap",
+                  bands_level=0.95, equation=None, warnings=(), objective=None):
     from ..fitting import CharacteristicCurves
 
     est = CharacteristicCurves(
@@ -56,7 +56,8 @@ def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_g
         derivatives=derivatives, jump=jump if jump in ("auto", "none", "") else [j for j in jump.split(",") if j.strip()],
         basis=basis, sr_options=sr_options, exclude_sticking=not keep_sticking, random_state=seed,
         threads=1 if threads is None else threads, device=device,
-        progress=_progress_printer(not quiet), refine=refine, refine_options=refine_options, equation=equation,
+        progress=_progress_printer(not quiet), refine=refine, refine_options=refine_options or None,
+        equation=equation, objective=objective or "auto",
     )
     check_out_dir(out_dir)  # before the fit: a bad --out must not cost a long run
     t0 = time.perf_counter()
@@ -147,6 +148,7 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
         from ..fitting import summary_lines
 
         lines += summary_lines(model)
+    lines += _settings_lines(model)
     lines += [f"warning: {w}" for w in result["warnings"]]
     skipped = _skipped_by_interrupt(model)
     if skipped:
@@ -158,6 +160,19 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
     text = "\n".join(lines)
     atomic_write_bytes(os.path.join(out_dir, "summary.txt"), (text + "\n").encode())
     say(text, quiet)
+
+
+def _settings_lines(model) -> list[str]:
+    """Every default that shaped the answer (also in result.json under info.settings)."""
+    st = model.info.get("settings")
+    if not st:
+        return []
+    curves = ", ".join(f"{k} = {v}" for k, v in st["curves"].items())
+    return ["settings (result.json info.settings):",
+            f"  template {st['template']} ({st['family']}), gauge {', '.join(st['gauge']) or 'none'}",
+            f"  curves {curves}" + (f"; learned jump on {', '.join(st['jumps'])}" if st["jumps"] else ""),
+            f"  derivatives {st['differentiator']}; objective {st['objective']} (asked: {st['objective_requested']}); "
+            f"post-SR {'yes' if st['post_sr'] else 'no'}; training preset {st['preset']}"]
 
 
 def cmd_fit(a) -> int:
@@ -177,14 +192,15 @@ def cmd_fit(a) -> int:
         truth = get_system(a.truth, a.truth_variant).true_curves()
     sr_options = {k: v for k, v in (("engine", a.sr_engine), ("generations", a.sr_generations),
                                     ("populations", a.sr_populations), ("max_size", a.sr_max_size)) if v is not None}
-    refine_options = {k: v for k, v in (("hold", a.refine_hold), ("substeps", a.refine_substeps)) if v is not None}
+    refine_options = {k: v for k, v in (("hold", a.refine_hold), ("substeps", a.refine_substeps),
+                                        ("segment_length", a.segment_length)) if v is not None}
     model = fit_and_write(traj, a.out, method=a.method, family=a.family, sym=a.sym, free_gain=a.free_gain,
                           sr_options=sr_options, gauge=a.gauge, gain_on=a.noisy_side, preset=a.preset, seed=a.seed,
                           derivatives=a.derivatives, jump=a.jump, basis=a.basis, keep_sticking=a.keep_sticking,
                           truth=truth, threads=a.threads, device=a.device, figure=not a.no_figure, quiet=a.quiet,
                           source=source_path(a.csv, a.out), refine=a.refine, refine_options=refine_options,
                           bands=a.bands, bands_kind=a.bands_kind, bands_level=a.bands_level, equation=a.equation,
-                          warnings=traj.quality_warnings())
+                          warnings=traj.quality_warnings(), objective=a.objective)
     return interrupted_exit(model, a.out)
 
 

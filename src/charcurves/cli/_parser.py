@@ -69,7 +69,9 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                         "(force: the paper's loss; acceleration: noise on the measured state)")
     f.add_argument("--preset", default="default", help="training preset: default or paper")
     f.add_argument("--seed", type=int, default=0, help=_SEED_HELP)
-    f.add_argument("--derivatives", default="auto", help="auto, given, savgol, spline, spectral or fd")
+    f.add_argument("--derivatives", default="auto",
+                   help="auto (the record's v, a columns when present, else spectral), given, savgol, spline, spectral, "
+                        "kalman, tvr or fd")
     f.add_argument("--jump", default="auto",
                    help="curves with a learned jump at 0, e.g. f1 (dry friction); auto (default): on the "
                         "velocity curve when the record has sticking phases; none: never")
@@ -91,13 +93,18 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     f.add_argument("--device", default="cpu")
     f.add_argument("--no-figure", action="store_true")
     f.add_argument("--quiet", action="store_true")
-    f.add_argument("--refine", default="auto",
-                   help="output-error refinement of closed-form curves, gain and constant by free-run simulation: "
-                        "output-error, none, or auto (default: for --free-gain fits of closed forms on estimated "
-                        "derivatives, i.e. measured records)")
-    f.add_argument("--refine-hold", default=None, help="input between samples in the free run: linear (default), zoh, "
-                                                        "bandlimited")
-    f.add_argument("--refine-substeps", type=int, default=None, help="RK4 steps per sample in the free run (default 4)")
+    f.add_argument("--objective", default=None, choices=["auto", "equation-error", "output-error"],
+                   help="auto (default): equation error, then output error (the curves refitted to the free-run "
+                        "simulation of the measured x) when the record has no derivative columns; equation-error; "
+                        "output-error")
+    f.add_argument("--refine", default=None,
+                   help="older name of --objective (none = equation-error)")
+    f.add_argument("--refine-hold", default=None, help="output error: the input between samples in the free run: "
+                                                        "linear (default), zoh, bandlimited")
+    f.add_argument("--refine-substeps", type=int, default=None,
+                   help="output error: RK4 steps per sample (default: chosen from the record's samples per period)")
+    f.add_argument("--segment-length", type=int, default=None,
+                   help="output error: samples per shooting segment (default 64)")
     f.add_argument("--bands", type=int, default=None, metavar="N",
                    help="uncertainty bands of the curves from an ensemble of N refits (result.json, curves.png)")
     f.add_argument("--bands-kind", choices=["bootstrap", "seeds"], default="bootstrap",

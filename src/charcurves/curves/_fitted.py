@@ -145,6 +145,7 @@ class NeuralFittedCurve(FittedCurve):
         act = _NUMPY_ACTIVATIONS[spec.activation]
         sl = spec.slices()
         lin = self.theta[:, sl["linear"]].reshape(-1, 1) if "linear" in sl else None
+        poly = [(self.theta[:, sl["poly"].start + j].reshape(-1, 1), k) for j, k in enumerate(spec.poly_powers)]
         mu = self.theta[:, sl["jump_height"]].reshape(-1, 1) if spec.jump else None
         eps = np.exp(jump_log_eps(self.theta[:, sl["jump_log_eps"]])).reshape(-1, 1) if spec.jump else None
         sym = spec.exact_symmetry
@@ -167,6 +168,8 @@ class NeuralFittedCurve(FittedCurve):
                 y = 0.5 * (net(u) - net(-u)) if sym == "odd" else 0.5 * (net(u) + net(-u))
             if lin is not None:
                 y = y + lin * u
+            for c, k in poly:
+                y = y + c * u**k
             if mu is not None:
                 y = y + mu * np.tanh(u / eps)
             return (y.mean(axis=0) * s_out).reshape(z.shape)
@@ -211,6 +214,7 @@ class NeuralFittedCurve(FittedCurve):
                 "symmetry_mode": self.spec.symmetry_mode,
                 "linear_term": self.spec.linear_term,
                 "jump": self.spec.jump,
+                **({"powers": list(self.spec.powers)} if self.spec.powers else {}),
             },
             in_scale=self.in_scale,
             out_scale=self.out_scale,
@@ -227,6 +231,7 @@ class NeuralFittedCurve(FittedCurve):
             symmetry_mode=net["symmetry_mode"],
             linear_term=bool(net["linear_term"]),
             jump=bool(net["jump"]),
+            powers=tuple(int(k) for k in net.get("powers", ())),
         )
         key = f"{d['name']}.theta"
         if key not in arrays:

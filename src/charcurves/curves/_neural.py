@@ -77,6 +77,10 @@ class NeuralCurve:
         Add a linear part ``c * u`` (skipped for even curves), started from least squares.
     jump : bool
         Add ``mu * tanh(u / eps)``, a learned jump at 0 (dry friction).
+    powers : tuple of int
+        Further polynomial terms ``c_k u^k`` beside the network (k >= 2; under an exact parity only
+        the powers of that parity are kept). Free of weight decay, so the network only models what
+        a low-order polynomial cannot, which keeps the curve's ends steady where few samples lie.
     """
 
     hidden: tuple[int, ...] = (8,)
@@ -85,6 +89,8 @@ class NeuralCurve:
     symmetry_mode: str = "exact"
     linear_term: bool = True
     jump: bool = False
+    powers: tuple[int, ...] = ()
+    decay_powers: bool = True
 
     def __post_init__(self) -> None:
         if self.symmetry not in SYMMETRIES:
@@ -102,6 +108,10 @@ class NeuralCurve:
         if self.jump and self.symmetry == "even":
             raise ConfigError("a jump at 0 is odd and cannot be part of an even curve; drop --jump or the even prior")
         object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
+        powers = tuple(int(k) for k in self.powers)
+        if any(k < 2 or k > 12 for k in powers) or len(set(powers)) != len(powers):
+            raise ConfigError(f"powers must be distinct integers from 2 to 12, got {self.powers!r}")
+        object.__setattr__(self, "powers", powers)
 
     # ------------------------------------------------------------------ layout
     @property
@@ -126,8 +136,14 @@ class NeuralCurve:
         return self.linear_term and self.exact_symmetry != "even"
 
     @property
+    def poly_powers(self) -> tuple[int, ...]:
+        """The extra powers that survive the exact parity."""
+        sym = self.exact_symmetry
+        return tuple(k for k in self.powers if sym == "none" or (k % 2 == 1) == (sym == "odd"))
+
+    @property
     def n_params(self) -> int:
-        return self.mlp.n_params + int(self.has_linear) + 2 * int(self.jump)
+        return self.mlp.n_params + int(self.has_linear) + len(self.poly_powers) + 2 * int(self.jump)
 
     @property
     def pinned_at_zero(self) -> bool:
@@ -140,6 +156,9 @@ class NeuralCurve:
         if self.has_linear:
             out["linear"] = slice(n, n + 1)
             n += 1
+        if self.poly_powers:
+            out["poly"] = slice(n, n + len(self.poly_powers))
+            n += len(self.poly_powers)
         if self.jump:
             out["jump_height"] = slice(n, n + 1)
             out["jump_log_eps"] = slice(n + 1, n + 2)
@@ -158,6 +177,8 @@ class NeuralCurve:
         parts = [mlp_part]
         if self.has_linear:
             parts.append(torch.zeros(K, 1, dtype=dtype))
+        if self.poly_powers:
+            parts.append(torch.zeros(K, len(self.poly_powers), dtype=dtype))
         if self.jump:
             parts.append(torch.zeros(K, 1, dtype=dtype))
             parts.append(torch.full((K, 1), math.log(0.01), dtype=dtype))
@@ -222,6 +243,10 @@ class NeuralCurve:
             y = 0.5 * (both[:, :n] - both[:, n:]) if sym == "odd" else 0.5 * (both[:, :n] + both[:, n:])
         if self.has_linear:
             y = y + theta[:, sl["linear"]] * u
+        if self.poly_powers:
+            c = theta[:, sl["poly"]]
+            for j, k in enumerate(self.poly_powers):
+                y = y + c[:, j:j + 1] * u**k
         if self.jump:
             mu = theta[:, sl["jump_height"]]
             eps = torch.exp(jump_log_eps(theta[:, sl["jump_log_eps"]]))
@@ -244,6 +269,8 @@ class NeuralCurve:
             for kind, size in (("weights", fan_in * fan_out), ("biases", fan_out)):
                 out.append((slice(start, start + size), f"layer {layer} {kind}"))
                 start += size
+        if self.poly_powers and self.decay_powers:
+            out.append((self.slices()["poly"], "polynomial terms"))
         return out
 
     def linear_parts(self, theta: torch.Tensor, u: torch.Tensor, u_both: torch.Tensor | None = None) -> list:
@@ -259,6 +286,8 @@ class NeuralCurve:
             u = u.unsqueeze(0).expand(theta.shape[0], -1)
         if "linear" in sl:
             out.append((sl["linear"].start, u, False))
+        for j, k in enumerate(self.poly_powers):
+            out.append((sl["poly"].start + j, u**k, False))
         if self.jump:
             eps = torch.exp(jump_log_eps(theta[:, sl["jump_log_eps"]]))
             out.append((sl["jump_height"].start, torch.tanh(u / eps), False))
@@ -275,6 +304,13 @@ class NeuralCurve:
         if self.has_linear:
             y = y + theta[:, sl["linear"]] * u
             cols.append(u.unsqueeze(-1))
+        if self.poly_powers:
+            c = theta[:, sl["poly"]]
+            for j, k in enumerate(self.poly_powers):
+                y = y + c[:, j:j + 1] * u**k
+                cols.append((u**k).unsqueeze(-1))
+                if d is not None:
+                    d = d + c[:, j:j + 1] * k * u ** (k - 1)
         if self.jump:
             mu = theta[:, sl["jump_height"]]
             raw = theta[:, sl["jump_log_eps"]]

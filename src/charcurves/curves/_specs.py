@@ -29,6 +29,10 @@ class Neural(AbstractCurve):
     jump : bool or "auto"
         A learned jump at 0 (dry friction). "auto": added when the record has sticking phases or
         a least-squares test finds a jump at zero velocity significant (velocity curves only).
+    powers : tuple of int or "auto", optional
+        Polynomial terms beside the network (see :class:`~charcurves.curves.NeuralCurve`); "auto"
+        (the default preset's): a cubic (odd or unconstrained curves) or quadratic (even curves) term
+        where a least-squares F test on the record finds the curve nonlinear, none beside a jump.
 
     Examples
     --------
@@ -38,11 +42,13 @@ class Neural(AbstractCurve):
 
     kind = "neural"
 
-    def __init__(self, hidden=None, activation: str | None = None, symmetry: str | None = None, jump=False):
+    def __init__(self, hidden=None, activation: str | None = None, symmetry: str | None = None, jump=False,
+                 powers=None):
         self.hidden = hidden
         self.activation = activation
         self.symmetry = symmetry
         self.jump = jump
+        self.powers = powers
 
     def check(self) -> None:
         sym = normalise_symmetry(self.symmetry, "Neural")
@@ -60,8 +66,9 @@ class Neural(AbstractCurve):
             raise ConfigError("a jump at 0 is odd and cannot be part of an even curve; drop the jump or the even prior")
         self.network(None)  # validates the activation
 
-    def network(self, preset, jump: bool | None = None):
-        """The :class:`~charcurves.curves.NeuralCurve` parametrisation under a training preset."""
+    def network(self, preset, jump: bool | None = None, powers: tuple | None = None):
+        """The :class:`~charcurves.curves.NeuralCurve` parametrisation under a training preset
+        (``jump`` and ``powers`` as decided for a record, when the settings say "auto")."""
         from ._neural import NeuralCurve
 
         hidden = tuple(self.hidden) if self.hidden is not None else (preset.hidden if preset is not None else (8,))
@@ -69,7 +76,18 @@ class Neural(AbstractCurve):
         return NeuralCurve(hidden=hidden, activation=activation, symmetry=self.symmetry_name,
                            symmetry_mode=preset.symmetry_mode if preset is not None else "exact",
                            linear_term=preset.linear_term if preset is not None else True,
-                           jump=bool(self.jump is True if jump is None else jump))
+                           jump=bool(self.jump is True if jump is None else jump),
+                           powers=tuple(powers) if powers is not None else self._fixed_powers(preset))
+
+    def powers_setting(self, preset):
+        """The polynomial terms asked for: a tuple, or "auto" (decided per record by the fitter)."""
+        if self.powers is not None:
+            return self.powers if self.powers == "auto" else tuple(self.powers)
+        return preset.powers if preset is not None else ()
+
+    def _fixed_powers(self, preset) -> tuple:
+        p = self.powers_setting(preset)
+        return () if p == "auto" else tuple(p)
 
     def scaling(self, z, preset):
         if preset is not None and not preset.scale_inputs:

@@ -90,7 +90,9 @@ def sticking_masks(records, template: EquationTemplate, estimated: list[bool], *
 
 
 def resolve_jumps(reps: dict, records, template: EquationTemplate, estimated: list[bool], preset: TrainingPreset):
-    """The neural curves that get a learned jump, per record (``jump="auto"`` decided per record)."""
+    """Per record, the layout of the neural curves: ``(jumps, powers)`` -- the curves that get a learned
+    jump (``jump="auto"`` decided per record) and the polynomial terms of each (``powers="auto"``:
+    :func:`nonlinearity_test`)."""
     out = []
     for rec, est in zip(records, estimated):
         layout = []
@@ -104,8 +106,58 @@ def resolve_jumps(reps: dict, records, template: EquationTemplate, estimated: li
                     sticking_mask(rec, rel_tol=0.01 if est else None).any()
                     or dry_friction_test(rec, template)[0] > JUMP_F_THRESHOLD):
                 layout.append(name)
-        out.append(tuple(layout))
+        powers = []
+        for name, rep in reps.items():
+            if rep.kind != "neural":
+                continue
+            setting = rep.powers_setting(preset)
+            if setting != "auto":
+                powers.append((name, tuple(setting)))
+            elif name not in layout:
+                sym = rep.symmetry_name
+                k = 2 if sym == "even" else 3
+                if nonlinearity_test(rec, template, reps, name, k, layout) > JUMP_F_THRESHOLD:
+                    powers.append((name, (k,)))
+        out.append((tuple(layout), tuple(powers)))
     return out
+
+
+def nonlinearity_test(traj, template: EquationTemplate, reps: dict, name: str, power: int, jumps) -> float:
+    """F statistic of ``m z^power`` for curve ``name`` in a least-squares fit of the equation whose
+    curves are otherwise linear (odd curves), constant-plus-quadratic (even) or linear-plus-quadratic
+    (unconstrained), with a sign column for each learned jump: large when the curve is clearly
+    nonlinear (Duffing's x^3), of order 1 when it is linear (damping, a linear spring)."""
+    D = template.design(traj)
+    E = D["E"]
+    cols = [np.ones(E * D["n"])] if E == 1 else []
+    for cname in template.curve_names:
+        u = D["args"][cname]
+        z = np.tile(u / max(float(np.max(np.abs(u))), 1e-300), E)
+        m = D["mult"][cname]
+        sym = reps[cname].symmetry_name
+        if sym != "even":
+            cols.append(m * z)
+        if sym != "odd":
+            cols += [m, m * z**2] if cname != name or power != 2 else [m]
+        if cname in jumps:
+            cols.append(m * np.sign(z))
+    cols += list(D["scalars"].values())
+    base = np.column_stack(cols)
+    u = D["args"][name]
+    z = np.tile(u / max(float(np.max(np.abs(u))), 1e-300), E)
+    X = np.column_stack([base, D["mult"][name] * z**power])
+    y = template.gain * D["F"] - D["y"]
+    if template.free_gain:
+        base, X = np.column_stack([base, D["F"]]), np.column_stack([X, D["F"]])
+        y = -D["y"]
+    c0, *_ = np.linalg.lstsq(base, y, rcond=None)
+    c1, *_ = np.linalg.lstsq(X, y, rcond=None)
+    sse0 = float(np.sum((y - base @ c0) ** 2))
+    sse1 = float(np.sum((y - X @ c1) ** 2))
+    dof = y.size - X.shape[1]
+    if sse1 <= 0 or dof <= 0:
+        return 0.0
+    return (sse0 - sse1) / (sse1 / dof)
 
 
 def fit_records(records, template: EquationTemplate, reps: dict, preset: TrainingPreset, seeds, *, method: str,
@@ -133,10 +185,10 @@ def fit_records(records, template: EquationTemplate, reps: dict, preset: Trainin
     groups: dict[tuple, list[int]] = {}
     for i, rec in enumerate(records):
         groups.setdefault((rec.n_samples, jumps[i]), []).append(i)
-    for (_, layout), idx in groups.items():
+    for (_, (layout, powers)), idx in groups.items():
         models = fit_gradient([records[i] for i in idx], template, reps, preset, [int(seeds[i]) for i in idx],
-                              method=method, masks=[masks[i] for i in idx], jumps=layout, device=device,
-                              threads=threads, progress=progress)
+                              method=method, masks=[masks[i] for i in idx], jumps=layout, powers=dict(powers),
+                              device=device, threads=threads, progress=progress)
         for i, m in zip(idx, models):
             out[i] = m
     return out

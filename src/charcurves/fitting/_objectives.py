@@ -83,13 +83,18 @@ class OutputError(_Objective):
         Longer records use this many segments spread over the record (the rest is not simulated).
     time_budget : float
         Seconds; training stops at the next iteration after it is spent.
+    bayesian : bool
+        Bayesian regularisation (MacKay's evidence, re-estimated at every step): the network
+        weights in the preset's groups, as the default equation-error training does, and every
+        coefficient of a linear or closed-form curve in a group of its own (automatic relevance
+        determination: terms the record does not support shrink to 0); otherwise a fixed tiny decay.
     """
 
     name = "output-error"
 
-    def __init__(self, segment_length: int | None = None, continuity: float = 0.0, substeps: int | None = None,
+    def __init__(self, segment_length: int | None = None, continuity: float = 10.0, substeps: int | None = None,
                  hold: str = "linear", max_iter: int = 40, tol: float = 1e-6, max_segments: int = 64,
-                 time_budget: float = 600.0):
+                 time_budget: float = 600.0, bayesian: bool = True):
         self.segment_length = segment_length
         self.continuity = continuity
         self.substeps = substeps
@@ -98,6 +103,7 @@ class OutputError(_Objective):
         self.tol = tol
         self.max_segments = max_segments
         self.time_budget = time_budget
+        self.bayesian = bayesian
 
     def check(self) -> None:
         from ..data import HOLDS, check_hold

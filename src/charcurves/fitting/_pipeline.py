@@ -78,13 +78,19 @@ def _fit_stage(est, records: list, seeds):
     masks = sticking_masks(prepared, structure, estimated, exclude=exclude, kind=kind,
                            stick_tol=options.get("stick_tol", "default"))
     jumps = resolve_jumps(reps, prepared, structure, estimated, preset) if kind == "gradient" else \
-        [() for _ in prepared]
-    models = fit_records(prepared, structure, reps, preset, seeds, method=method, masks=masks, jumps=jumps,
+        [((), ()) for _ in prepared]
+    use_oe = [mode == "output-error" or (mode == "auto" and e and preset.name != "paper") for e in estimated]
+    fit_preset = preset
+    if all(use_oe) and not est.wants_post_sr() and preset.combine == "mean":
+        # every start goes on to output error, which chooses the members afterwards (by AIC, where a
+        # start that fits the noise with more effective parameters loses): keep them all here
+        fit_preset = preset.replace(combine_tol=float("inf"))
+    models = fit_records(prepared, structure, reps, fit_preset, seeds, method=method, masks=masks, jumps=jumps,
                          options=options, sr_options=dict(est.sr_options or {}), device=est.device,
                          threads=est.threads, progress=est.progress)
     return {"models": models, "prepared": prepared, "estimated": estimated, "seeds": seeds, "mode": mode,
             "oe_settings": oe_settings, "preset": preset, "reps": reps, "structure": structure, "sym": sym,
-            "method": method, "diff": diff, "jumps": jumps}
+            "method": method, "diff": diff, "jumps": jumps, "use_oe": use_oe}
 
 
 def run_pipeline(est, records: list, seeds=None) -> list:
@@ -93,7 +99,7 @@ def run_pipeline(est, records: list, seeds=None) -> list:
     mode, oe_settings, preset, reps = ctx["mode"], ctx["oe_settings"], ctx["preset"], ctx["reps"]
     structure, sym, method, diff, jumps = ctx["structure"], ctx["sym"], ctx["method"], ctx["diff"], ctx["jumps"]
     stop = any(m.info.get("interrupted") for m in models)
-    use_oe = [mode == "output-error" or (mode == "auto" and e and preset.name != "paper") for e in estimated]
+    use_oe = ctx["use_oe"]
     if est.wants_post_sr():
         models, stop = _post_sr(est, models, prepared, seeds, stop)
     models, stop = _output_error(models, prepared, records, use_oe, oe_settings, preset, est.progress, stop,
@@ -112,7 +118,8 @@ def run_pipeline(est, records: list, seeds=None) -> list:
             "post_sr": est.wants_post_sr(),
             "preset": preset.name,
             "symmetry": dict(sym),
-            "jumps": list(jumps[k]),
+            "jumps": list(jumps[k][0]),
+            "polynomial_terms": {n: list(p) for n, p in jumps[k][1]},
             "gauge": list(structure.anchors),
         }
     return models

@@ -20,7 +20,7 @@ class TrainingPreset:
     Parameters
     ----------
     name : str
-    hidden, activation, linear_term : network shape of every curve (see NeuralCurve)
+    hidden, activation, linear_term, powers : network shape of every curve (see NeuralCurve)
     symmetry_mode : {"exact", "penalty"}
     lambda_sym, n_sym : weight and number of points of the symmetry penalty (paper: 10, 1000)
     dtype : {"float64", "float32"}
@@ -58,6 +58,7 @@ class TrainingPreset:
     hidden: tuple[int, ...] = (8,)
     activation: str = "softplus"
     linear_term: bool = True
+    powers: tuple[int, ...] | str = "auto"
     symmetry_mode: str = "exact"
     lambda_sym: float = 10.0
     n_sym: int = 1000
@@ -93,6 +94,8 @@ class TrainingPreset:
         if self.adam_steps == 0 and self.lm_max_iter == 0:
             raise ConfigError("a preset needs adam_steps > 0 or lm_max_iter > 0, otherwise nothing is trained")
         object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
+        if self.powers != "auto":
+            object.__setattr__(self, "powers", tuple(int(k) for k in self.powers))
 
     def replace(self, **changes) -> TrainingPreset:
         return dataclasses.replace(self, **changes)
@@ -100,6 +103,7 @@ class TrainingPreset:
     def to_dict(self) -> dict:
         d = dataclasses.asdict(self)
         d["hidden"] = list(self.hidden)
+        d["powers"] = self.powers if self.powers == "auto" else list(self.powers)
         return d
 
 
@@ -113,6 +117,7 @@ PRESETS: dict[str, TrainingPreset] = {
         hidden=(100, 100, 100),
         activation="relu",
         linear_term=False,
+        powers=(),
         symmetry_mode="penalty",
         lambda_sym=10.0,
         n_sym=1000,

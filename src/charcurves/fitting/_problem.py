@@ -74,8 +74,10 @@ class LeastSquaresProblem:
                     group[a:b] = len(parts)
                     parts.append((i, label))
                 elif self.decay_groups == "per-curve":
-                    if not parts or parts[-1][0] != i:
-                        parts.append((i, ""))
+                    # a curve's network is one group; its polynomial terms keep a group of their own
+                    own = "" if label.startswith("layer") else label
+                    if not parts or parts[-1] != (i, own):
+                        parts.append((i, own))
                     group[a:b] = len(parts) - 1
         if self.decay_groups == "shared" or not parts:
             parts = [(None, "")]

@@ -1,0 +1,145 @@
+"""Measured records (noise on x only): every objective and differentiator against the limit and the peer.
+
+For the paper's Duffing (and stick-slip) records with Gaussian noise on x only (no v, a columns;
+``corrupt(..., on="state")``), 5 noise seeds per level, in one run:
+
+* charcurves' methods with the default objective ("auto": equation error, then output error)
+  and with equation error alone, nn-cc+sym also from each differentiator (spectral = auto,
+  Kalman/RTS smoother, Savitzky-Golay 31/3 as the paper's appendix F);
+* the limit: Parametric on the true basis refined by output error;
+* the peer: PySINDy's weak form run as a practitioner would (benchmarks/peers.py).
+
+Printed: mean worst-curve RMSE (max over f1, f2 of curve_errors, then the mean over the seeds),
+the mean seconds of the whole fit, and for output error the seconds of the output-error stage
+against the equation-error fit of the same record (target: at most 10x). Results go to
+benchmarks/results/state_noise.json. Run: ``python benchmarks/bench_state_noise.py [--quick]``
+(``--quick``: 2 seeds, Duffing only).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+
+METHODS = ("nn-cc+sym", "nn-cc", "poly-cc", "sindy-cc+sym")
+DIFFERENTIATORS = ("spectral", "kalman", "savgol")
+
+
+def _fit(record, method, objective, differentiator, seed):
+    import charcurves as cc
+
+    kw = {"differentiator": differentiator} if differentiator != "spectral" else {}
+    if differentiator == "savgol":
+        kw = {"differentiator": cc.SavitzkyGolay(window=31, order=3)}
+    est = cc.CharacteristicCurves(method=method, objective=objective, random_state=seed, threads=1, **kw)
+    t0 = time.perf_counter()
+    model = est.fit(record).model_
+    return model, time.perf_counter() - t0
+
+
+def run_record(job):
+    """All fits of one record: ``job = (system, snr, seed)`` -> list of result rows."""
+    import torch
+
+    torch.set_num_threads(1)
+    from peers import TRUE_BASIS, fit_parametric_oe, fit_pysindy_weak
+
+    from charcurves.data import corrupt
+    from charcurves.metrics import curve_errors
+    from charcurves.systems import get_system
+
+    system_name, snr, seed = job
+    system = get_system(system_name)
+    truth = system.true_curves()
+    record = corrupt(system.simulate(), snr, on="state", seed=seed)
+    rows = []
+
+    def add(label, objective, differentiator, model, seconds, **extra):
+        errs = curve_errors(model, truth)
+        oe = model.info.get("output_error", {}) if hasattr(model, "info") else {}
+        rows.append({"system": system_name, "snr": snr, "seed": seed, "label": label, "objective": objective,
+                     "differentiator": differentiator, "f1": errs["f1"], "f2": errs["f2"],
+                     "worst": max(errs.values()), "seconds": seconds, "oe_seconds": oe.get("seconds"),
+                     "oe_status": oe.get("status"), **extra})
+
+    methods = METHODS if system_name == "duffing" else ("nn-cc+sym",)
+    for method in methods:
+        diffs = DIFFERENTIATORS if method == "nn-cc+sym" else ("spectral",)
+        for diff in diffs:
+            ee, t_ee = _fit(record, method, "equation-error", diff, seed)
+            add(method, "equation-error", diff, ee, t_ee)
+            oe, t_oe = _fit(record, method, "auto", diff, seed)
+            extra = {"ee_seconds": t_ee}
+            if system_name == "stick-slip":
+                extra["jump_height"] = oe.curves["f1"].components().get("jump_height")
+            add(method, "auto", diff, oe, t_oe, **extra)
+    t0 = time.perf_counter()
+    limit = fit_parametric_oe(record, TRUE_BASIS[system_name], seed=seed)
+    add("parametric (true basis) + output error: the limit", "output-error", "spectral", limit,
+        time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    peer = fit_pysindy_weak(record, seed=seed)
+    add("PySINDy weak form (the peer)", "weak form", "savgol (velocity state)", peer, time.perf_counter() - t0)
+    return rows
+
+
+def summarise(rows) -> list[str]:
+    import collections
+
+    groups = collections.OrderedDict()
+    for r in rows:
+        groups.setdefault((r["system"], r["snr"], r["label"], r["objective"], r["differentiator"]), []).append(r)
+    lines = [f"{'system':<10} {'SNR':>4}  {'method':<52} {'objective':<15} {'derivatives':<24} "
+             f"{'worst RMSE':>10} {'f1':>9} {'f2':>9} {'s/fit':>6} {'OE/EE':>6}"]
+    for (system, snr, label, obj, diff), rs in groups.items():
+        worst = np.mean([r["worst"] for r in rs])
+        ratio = ""
+        if rs[0].get("ee_seconds") and rs[0].get("oe_seconds"):
+            ratio = f"{np.mean([r['oe_seconds'] / r['ee_seconds'] for r in rs]):.1f}"
+        lines.append(f"{system:<10} {snr:>4g}  {label:<52} {obj:<15} {diff:<24} {worst:>10.3g} "
+                     f"{np.mean([r['f1'] for r in rs]):>9.3g} {np.mean([r['f2'] for r in rs]):>9.3g} "
+                     f"{np.mean([r['seconds'] for r in rs]):>6.1f} {ratio:>6}")
+    return lines
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="2 seeds, Duffing only")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--out", default=os.path.join(HERE, "results", "state_noise.json"))
+    a = parser.parse_args(argv)
+    seeds = range(2) if a.quick else range(5)
+    jobs = [("duffing", snr, s) for snr in (40.0, 30.0) for s in seeds]
+    if not a.quick:
+        jobs += [("stick-slip", 40.0, s) for s in seeds]
+    t0 = time.perf_counter()
+    load = os.getloadavg()[0]
+    if a.workers > 1:
+        import multiprocessing as mp
+
+        with mp.get_context("spawn").Pool(a.workers) as pool:
+            results = pool.map(run_record, jobs)
+    else:
+        results = [run_record(j) for j in jobs]
+    rows = [r for rs in results for r in rs]
+    lines = summarise(rows)
+    lines.append(f"mean over {len(seeds)} noise seeds per level; {len(jobs)} records, {a.workers} worker processes, "
+                 f"{time.perf_counter() - t0:.0f} s; load average {load:.2f} at the start, {os.getloadavg()[0]:.2f} "
+                 "at the end")
+    print("\n".join(lines))
+    os.makedirs(os.path.dirname(a.out), exist_ok=True)
+    with open(a.out, "w") as fh:
+        json.dump({"rows": rows, "summary": lines}, fh, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
