@@ -13,12 +13,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import subprocess
 import sys
-import time
 
-import numpy as np
 
 _CHILD = r"""
 import json, resource, sys, time, numpy as np, torch

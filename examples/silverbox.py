@@ -228,7 +228,7 @@ def refine(model, d, convention: str) -> dict:
     estimation split, cut into segments of 256 samples with free initial states (multiple
     shooting), with the input reconstruction and RK4 sub-steps of ``convention``.
     """
-    from charcurves.fitting._output_error import refine_output_error
+    from charcurves.fitting import refine_output_error
 
     hold, sub = CONVENTIONS[convention]
     refined = refine_output_error(model, d, hold=hold, substeps=sub)
@@ -373,7 +373,7 @@ def main(argv=None) -> int:
         fig.savefig(os.path.join(args.out, "silverbox_curves.png"), dpi=110)
         plt.close(fig)
         try:  # post-SR: what method "nn-cc+sym+post-sr" does after the NN fit
-            from charcurves.symbolic import distill_model
+            from charcurves.fitting import distill_model
 
             t0 = time.perf_counter()
             sr = distill_model(nn, sr_options={}, random_state=0, traj=d)

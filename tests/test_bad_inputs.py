@@ -631,7 +631,7 @@ def test_every_command_bounds_its_seed_before_any_work(command, seed, files, tmp
     err = capsys.readouterr().err
     assert code == 2, err
     assert err.count("\n") == 1 and err.startswith("charcurves: error: --seed must be a non-negative integer of at "
-                                                    f"most 32 bits (0 ... 4294967295, "), err
+                                                    "most 32 bits (0 ... 4294967295, "), err
     assert f"got {seed}; e.g. --seed 0" in err
     assert not out_dir.exists()
 

@@ -18,7 +18,6 @@ from charcurves.fitting import load_model
 from charcurves.curves import SparseLibrary
 from charcurves.fitting import l0_weight
 from charcurves.metrics import curve_errors
-from charcurves.templates import get_template
 
 pytest.importorskip("pysindy")
 Z = sp.Symbol("z")

@@ -7,7 +7,7 @@ import pytest
 
 import charcurves as cc
 from charcurves.curves import SymbolicFittedCurve
-from charcurves.fitting import FittedModel, PRESETS
+from charcurves.fitting import FittedModel
 from charcurves.metrics import largest_lyapunov_exponent, separation_time, trajectory_rmse
 from charcurves.simulate import simulate_model, sinusoidal_forcing
 from charcurves.templates import get_template

@@ -17,7 +17,6 @@ from ._differentiate import Given as Given
 from ._differentiate import KalmanSmoother as KalmanSmoother
 from ._differentiate import SavitzkyGolay as SavitzkyGolay
 from ._differentiate import SmoothingSpline as SmoothingSpline
-from ._differentiate import SmoothingSpline as Spline
 from ._differentiate import Spectral as Spectral
 from ._differentiate import TotalVariation as TotalVariation
 from ._differentiate import estimate_derivatives as estimate_derivatives
@@ -26,4 +25,6 @@ from ._holds import HOLDS as HOLDS
 from ._holds import check_hold as check_hold
 from ._holds import rk4_sampled as rk4_sampled
 from ._holds import stage_inputs as stage_inputs
-from ._noise import as_rng as as_rng
+
+#: The older name of :class:`SmoothingSpline`.
+Spline = SmoothingSpline

@@ -30,10 +30,8 @@ import time
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-import numpy as np
 
 from .._errors import ConfigError
-from . import _paper_values as paper
 
 __all__ = [
     "BENCHMARK_SECTIONS",

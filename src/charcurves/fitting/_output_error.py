@@ -149,8 +149,8 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
         sl = rf.param.slices() if hasattr(rf.param, "slices") else {}
         if "jump_log_eps" in sl:  # train with a width RK4 integrates; the sharp one comes back afterwards
             j = sl["jump_log_eps"].start
-            restore[name] = theta[:, j].copy()
-            theta[:, j] = np.maximum(theta[:, j], _smooth_jump_raw(rf, prep_cols, fm, name, substeps, dt))
+            restore[name] = np.full(theta.shape[0], -60.0)  # afterwards: the sharp step (Coulomb's sign)
+            theta[:, j] = _smooth_jump_raw(rf, prep_cols, fm, name, substeps, dt)
             frozen.append(j)
         param = rf.param if rf.param.decay_groups() or not settings.bayesian else _Ridge(rf.param)
         blocks.append(CurveBlock(name, param, col(rf.center), col(rf.half_width), col(rf.out_scale), col(rf.shift),
@@ -182,7 +182,7 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
                               torch.as_tensor(contiguous, dtype=torch.bool), weight_decay=1e-10,
                               bayesian=bool(settings.bayesian), decay_groups=preset.decay_groups)
     with torch.no_grad():
-        loss0 = problem.loss(theta0)
+        loss0 = problem.residuals(theta0)[:, :problem.n_data].pow(2).sum(dim=1)  # the data part only
     if not bool(torch.isfinite(loss0).any()):
         return _kept(model, report, "failed: the free run of the equation-error model diverges on every segment")
     theta, log = train(problem, theta0, adam_steps=0, adam_lr=0.0, lm_max_iter=int(settings.max_iter),

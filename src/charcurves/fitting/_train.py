@@ -11,8 +11,13 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import torch
+
+if TYPE_CHECKING:
+    from ._presets import TrainingPreset
+    from ._problem import BatchedProblem
 
 __all__ = ["TrainingLog", "train", "train_in_chunks", "train_with_preset", "chunk_log", "merge_logs",
            "torch_threads", "start_weights"]
@@ -117,11 +122,32 @@ def _evidence_update(problem, theta, JtJ, r):
     return lam_new, gamma.sum(1)
 
 
+def _initial_decay(problem, theta, shape):
+    """The evidence iterations start from a decay of 1e-8 or, in problems that ask for it (output
+    error), less where the weights are large against the data misfit (coefficients of physical size,
+    e.g. 6e5 V^-2 on the Silverbox): there a fixed start would make the prior outweigh the data on
+    the first step and drag the fit away."""
+    lam = torch.full(shape, 1e-8, dtype=theta.dtype, device=theta.device)
+    if problem.decay_index is None or not getattr(problem, "scaled_initial_decay", False):
+        return lam
+    problem.set_weight_decay(torch.zeros(shape, dtype=theta.dtype, device=theta.device))
+    with torch.no_grad():
+        data = problem.residuals(theta)[:, :problem.n_data].pow(2).sum(1)  # (K,)
+    G = problem.n_decay_groups
+    masks = torch.zeros(G, theta.shape[1], dtype=theta.dtype, device=theta.device)
+    masks[problem.decay_group, problem.decay_index] = 1.0
+    E_W = (theta.pow(2) @ masks.T).clamp_min(1e-300)  # (K, G)
+    cap = 1e-6 * data.view(-1, 1) / E_W
+    cap = torch.where(torch.isfinite(cap), cap, torch.full_like(cap, 1e-8))
+    lam_g = torch.minimum(torch.full_like(cap, 1e-8), cap)
+    return lam_g.min(dim=1).values if len(shape) == 1 else lam_g
+
+
 def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress, holder):
     K, P = theta.shape
     if problem.bayesian:
         shape = (K,) if problem.n_decay_groups == 1 else (K, problem.n_decay_groups)
-        problem.set_weight_decay(torch.full(shape, 1e-8, dtype=theta.dtype, device=theta.device))
+        problem.set_weight_decay(_initial_decay(problem, theta, shape))
     r, J = problem.residuals_jacobian(theta)
     cost = r.pow(2).sum(1)
     mu = torch.full((K,), 1e-3, dtype=theta.dtype, device=theta.device)

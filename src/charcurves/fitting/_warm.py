@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
 from ._train import merge_logs, torch_threads, train_with_preset
+
+if TYPE_CHECKING:
+    from ._presets import TrainingPreset
 
 __all__ = ["train_batched", "warm_start", "profile_jump_widths", "sharpen_unresolved_jumps", "gain_estimate"]
 
@@ -41,7 +45,6 @@ def train_batched(problem, theta0, preset: TrainingPreset, *, threads, device, c
                   profile_jumps: bool = False):
     """Warm start, train with ``preset`` (Ctrl-C ends the whole call, see :func:`train_in_chunks`)
     and, for jump-aware curves, profile the jump widths: ``(theta, logs, merged log, loss per row)``."""
-    import torch
 
     if preset.warm_start:
         theta0 = warm_start(problem, theta0)
@@ -63,7 +66,6 @@ def profile_jump_widths(problem, theta, n_grid: int = 33):
     linear part or its saturated tails, so gradient steps leave it wherever they started; a
     profile finds the width the data support (a true step for Coulomb friction with slipping
     samples at tiny |x'|, 1/500 for the tanh(500 x') law)."""
-    import torch
 
     terms = [(i, t) for i, t in enumerate(problem.terms) if "jump_log_eps" in _slices(t.curve)]
     if not terms:
@@ -95,7 +97,6 @@ def sharpen_unresolved_jumps(problem, theta, saturation: float = 10.0):
     """Set the width of each jump with |u| >= saturation * eps at every fitted sample to its lower
     bound (eps = 1e-7 of the range), in place. The fit changes by at most mu * (1 - tanh(10)),
     about 4e-9 mu, at the samples. Returns a per-model flag, or None without jump curves."""
-    import torch
 
     from ..curves import jump_log_eps
 
@@ -124,7 +125,6 @@ _EVEN_WARM_RIDGE = 1e-3
 def warm_start(problem, theta0):
     """Least squares for the parts that enter linearly (linear terms, jump heights, gain, constant,
     and the output layer of exact even curves, which have no linear term: see curves/_neural.py)."""
-    import torch
 
     with torch.no_grad():
         N = problem.y.shape[1]

@@ -18,7 +18,7 @@ def run_select(a, *, say, check_out) -> int:
     from ..templates import get_template, read_record
     from ..io._csv import atomic_write_bytes
     from ..fitting import MIN_MEMBERS
-    from ._loops import select_family
+    from ._family import select_family
 
     families = [f.strip() for f in a.families.split(",") if f.strip()]
     if not families:

@@ -79,7 +79,6 @@ def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_co
     The initial state of each span is estimated from its first 128 samples
     (:func:`estimate_initial_state`); the RMSE is over every sample of the span.
     """
-    import json
     import os
 
     from ..data import Trajectory

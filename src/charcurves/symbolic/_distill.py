@@ -26,7 +26,6 @@ An explicit ``sr_options["operators"]`` overrides all this (whole-curve SR with 
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 

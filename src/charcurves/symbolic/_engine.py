@@ -65,11 +65,9 @@ Hence ``selection="auto"``: "knee" for post-SR, "bic" for SR and SR-CC. Times: S
 from __future__ import annotations
 
 import abc
-import dataclasses
-import math
 import time
 from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import ConfigError, DataError, IdentifiabilityError
-from ._parse import (CURVE, DERIV, FORCE, MAX_TEXT, SCALAR, STATE, ParsedEquation, display, parse_side, raw_arguments,
+from ._parse import (DERIV, FORCE, MAX_TEXT, STATE, ParsedEquation, display, parse_side, raw_arguments,
                      show, sort_key, split_equation)
 
 __all__ = ["EquationTemplate", "FAMILY_EQUATIONS", "FAMILY_ANCHORS", "record_columns", "evaluate_signal"]
