@@ -1,0 +1,134 @@
+"""The model.json schema and its check (docs/model-format.md describes the same format)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._errors import ModelFileError
+from ..curves import expression_cost_problem
+
+__all__ = ["MODEL_SCHEMA", "validate_model_document", "FORMAT_VERSION"]
+
+FORMAT_VERSION = 1
+_MODEL_JSON = "model.json"
+
+
+# ---------------------------------------------------------------------- model.json schema
+# A plain-Python schema (docs/model-format.md describes the same): a type per key, nested dicts
+# for objects, a one-element list for "list of". Keys may be added in later releases of the same
+# format version, so unknown keys are ignored; missing or mistyped ones are errors.
+_NUMBER = "number"
+_TEMPLATE_SCHEMA = {"family": str}
+_CURVE_SCHEMA = {"kind": str, "name": str, "argument": str, "domain": [_NUMBER], "shift": _NUMBER}
+_CURVE_KIND_SCHEMA = {
+    "neural": {"network": {"hidden": [int], "activation": str, "symmetry": str, "symmetry_mode": str,
+                           "linear_term": bool, "jump": bool},
+               "in_scale": _NUMBER, "out_scale": _NUMBER},
+    "basis": {"basis": [str]},
+    "symbolic": {"expression": str},
+    "linear": {"representation": str, "parameters": dict, "center": _NUMBER, "half_width": _NUMBER,
+               "constant": _NUMBER},
+}
+MODEL_SCHEMA = {
+    "format": str,
+    "format_version": int,
+    "template": _TEMPLATE_SCHEMA,
+    "method": str,
+    "gain": _NUMBER,
+    "offset": _NUMBER,
+    "loss": "number or null",
+    "curves": [_CURVE_SCHEMA],
+    "info": dict,
+    "arrays_sha256": str,
+}
+
+
+def _type_name(value) -> str:
+    return {dict: "an object", list: "a list", str: "a string", bool: "a boolean", type(None): "null"}.get(
+        type(value), "a number" if isinstance(value, (int, float)) else type(value).__name__)
+
+
+def _check(value, schema, where: str, jpath: str) -> None:
+    def fail(expected: str):
+        raise ModelFileError(f"{jpath!r}: {where} must be {expected}, not {_type_name(value)}; the model file is "
+                             "corrupted or was edited by hand, re-save or re-fit the model")
+
+    if isinstance(schema, dict):
+        if not isinstance(value, dict):
+            fail("an object")
+        for key, sub in schema.items():
+            if key not in value:
+                raise ModelFileError(f"{jpath!r}: {where}.{key} is missing; the model file is incomplete, "
+                                     "re-save or re-fit the model")
+            _check(value[key], sub, f"{where}.{key}", jpath)
+    elif isinstance(schema, list):
+        if not isinstance(value, list):
+            fail("a list")
+        for i, item in enumerate(value):
+            _check(item, schema[0], f"{where}[{i}]", jpath)
+    elif schema == _NUMBER:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            fail("a number")
+    elif schema == "number or null":
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            fail("a number")
+    elif schema is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            fail("an integer")
+    elif schema is dict:
+        if not isinstance(value, dict):
+            fail("an object")
+    elif not isinstance(value, schema):
+        fail({str: "a string", bool: "true or false"}.get(schema, schema.__name__))
+
+
+def validate_model_document(doc, jpath: str = _MODEL_JSON) -> None:
+    """Check a parsed model.json against :data:`MODEL_SCHEMA`; raise ModelFileError naming the first problem.
+
+    The format and its version are checked first, so a file from a newer charcurves is reported as
+    such rather than as a schema mismatch.
+    """
+    if not isinstance(doc, dict) or doc.get("format") != "charcurves-model":
+        raise ModelFileError(f"{jpath!r} is not a charcurves model file (no \"format\": \"charcurves-model\"); "
+                             "give the directory a model was saved to")
+    version = doc.get("format_version")
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise ModelFileError(f"{jpath!r} has an invalid format_version {version!r}; the model file is corrupted, "
+                             "re-save or re-fit the model")
+    if version > FORMAT_VERSION:
+        raise ModelFileError(f"{jpath!r}: model format version {version} is not supported by this charcurves, "
+                             f"which reads version {FORMAT_VERSION} (the file comes from a newer release); "
+                             "upgrade charcurves (pip install -U charcurves)")
+    if version != FORMAT_VERSION:  # pragma: no cover - no older version exists yet
+        raise ModelFileError(f"{jpath!r} has model format version {version}, which this charcurves no longer "
+                             f"reads (it reads {FORMAT_VERSION}); re-fit the model")
+    _check(doc, MODEL_SCHEMA, "model", jpath)
+    for key, nonzero in (("gain", True), ("offset", False)):
+        value = float(doc[key])
+        if not np.isfinite(value) or (nonzero and value == 0.0):
+            need = "a finite non-zero number" if nonzero else "a finite number"
+            raise ModelFileError(f"{jpath!r}: model.{key} is {doc[key]!r}, but must be {need}; the model file is "
+                                 "corrupted or was edited by hand, re-fit the model")
+    sha = doc["arrays_sha256"]
+    if len(sha) != 64 or any(ch not in "0123456789abcdef" for ch in sha):
+        raise ModelFileError(f"{jpath!r}: model.arrays_sha256 is not a sha256 hex digest; the model file is "
+                             "corrupted, re-save or re-fit the model")
+    names = []
+    for i, curve in enumerate(doc["curves"]):
+        where = f"model.curves[{i}]"
+        if len(curve["domain"]) != 2:
+            raise ModelFileError(f"{jpath!r}: {where}.domain must be [low, high]; the model file is corrupted, "
+                                 "re-save or re-fit the model")
+        kind_schema = _CURVE_KIND_SCHEMA.get(curve["kind"])
+        if kind_schema is not None:  # other kinds (register_curve_kind) check themselves
+            _check(curve, kind_schema, where, jpath)
+        texts = [curve["expression"]] if curve["kind"] == "symbolic" else list(curve.get("basis") or [])
+        for text in texts:
+            problem = expression_cost_problem(text)
+            if problem:
+                raise ModelFileError(f"{jpath!r}: {where} has the expression {text[:60]!r}, which {problem}; "
+                                     "refusing to load it, re-fit the model")
+        names.append(curve["name"])
+    if len(set(names)) != len(names) or not names:
+        raise ModelFileError(f"{jpath!r}: curve names {names} are empty or repeated; the model file is corrupted, "
+                             "re-save or re-fit the model")
