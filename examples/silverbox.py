@@ -221,17 +221,17 @@ def equation_error_fit(d):
     return model, p, float(np.sqrt(np.mean(resid**2)) / np.std(d.a))
 
 
-def refine(model, d, convention: str) -> dict:
+def refine(model, d, convention: str, segment_length: int = 256) -> dict:
     """Output-error refinement by the library (charcurves.fitting._output_error.refine_output_error).
 
     All coefficients of the closed forms, g and b are fitted to the free-run simulation of the
     estimation split, cut into segments of 256 samples with free initial states (multiple
-    shooting), with the input reconstruction and RK4 sub-steps of ``convention``.
+    shooting; ``--quick``: 64), with the input reconstruction and RK4 sub-steps of ``convention``.
     """
     from charcurves.fitting import refine_output_error
 
     hold, sub = CONVENTIONS[convention]
-    refined = refine_output_error(model, d, hold=hold, substeps=sub)
+    refined = refine_output_error(model, d, hold=hold, substeps=sub, segment_length=segment_length)
     oe = refined.info["output_error"]
     return {
         "model": refined,
@@ -402,10 +402,11 @@ def main(argv=None) -> int:
         f"g {p_ee[3]:.5g}, b {p_ee[4]:.1f}")
 
     # ---------------------------------------------------------------- 3. output-error refinement
-    say("\n3. output-error refinement (library: multiple shooting, segments of 256 samples) on the estimation data")
+    say(f"\n3. output-error refinement (library: multiple shooting, segments of {64 if args.quick else 256} samples) "
+        "on the estimation data")
     refined = {}
     for conv in ("continuous", "discrete-rk4", "linear-input"):
-        r = refine(ee_model, d, conv)
+        r = refine(ee_model, d, conv, 64 if args.quick else 256)
         refined[conv] = r
         p = r["coefficients"]
         say(f"  {conv:13s} c {p[0]:7.2f}  k1 {p[1]:.5g}  k3 {p[2]:.4g}  g {p[3]:.5g}  b {p[4]:7.1f}   "
@@ -418,7 +419,7 @@ def main(argv=None) -> int:
     if sr_model is not None:
         # what `charcurves fit ... --method nn-cc+sym+post-sr --free-gain` does by default: the post-SR
         # closed forms as distilled (whatever their structure) refined with the library defaults
-        r = refine(sr_model, d, "linear-input")
+        r = refine(sr_model, d, "linear-input", 64 if args.quick else 256)
         say(f"  post-SR closed forms refined (library default, linear-input): f1 = {r['expressions']['f1']}, "
             f"f2 = {r['expressions']['f2']}, g {r['model'].gain:.5g}; estimation RMSE {r['rmse_mV']:.3f} mV "
             f"({r['seconds']:.1f} s)")

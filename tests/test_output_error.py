@@ -169,6 +169,33 @@ def test_api_refine_option_on_a_parametric_fit(duffing_record):
     assert after["g"] == refined.gain and after["f2:z**3"] == refined.curves["f2"].coefficients[1]
 
 
+def test_free_run_diagnostics_and_the_curves_figure_panel(tmp_path, duffing_record):
+    """The diagnostics of curves.png: one free run of the refitted model over the whole record, whose
+    RMSE against the measured x is the one result.json reports; the figure gets two more rows."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from charcurves.cli._fit import _curves_figure
+    from charcurves.fitting import free_run_diagnostics
+
+    traj, clean = duffing_record
+    short = traj.slice(slice(0, 800))
+    kwargs = dict(method="parametric", basis="f1=z; f2=z, z**3", free_gain=True, derivatives="spectral")
+    refined = cc.fit(short, objective="output-error", **kwargs)
+    t, measured, free = free_run_diagnostics(refined, short)
+    assert np.array_equal(measured, short.x) and t.shape == free.shape == (800,)
+    rmse = float(np.sqrt(np.mean((free - measured) ** 2)))
+    assert rmse == pytest.approx(refined.info["output_error"]["free_run_rmse_after"], rel=1e-9)
+    noise = 0.01 * np.std(clean)
+    assert rmse < 1.5 * noise  # the free run follows the record to its noise level (1 % of std x)
+    plain = cc.fit(short, objective="equation-error", **kwargs)
+    assert free_run_diagnostics(plain, short) is None
+    with_panel = _curves_figure(refined, None, short, "t")
+    without = _curves_figure(plain, None, short, "t")
+    assert len(with_panel.axes) == 4 and len(without.axes) == 2
+    assert with_panel.get_figheight() > 2 * without.get_figheight()
+
+
 def test_refined_model_round_trips(tmp_path, duffing_record):
     traj, _ = duffing_record
     refined = refine_output_error(symbolic_model("0.42*z", "z + 0.5*z**3", 2.0),

@@ -86,12 +86,36 @@ def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_g
     with signals_deferred() as late_interrupt:
         make_out_dir(out_dir)
         write_results(model, out_dir, method=model.method, family=family, free_gain=free_gain, truth=truth,
-                      figure=figure, quiet=quiet, source=source, elapsed=elapsed, warnings=list(warnings))
+                      figure=figure, quiet=quiet, source=source, elapsed=elapsed, warnings=list(warnings),
+                      record=traj)
     model.info["interrupted_while_writing"] = late_interrupt[0]
     return model
 
 
-def write_results(model, out_dir, *, method, family, free_gain, truth, figure, quiet, source, elapsed, warnings=()):
+def _curves_figure(model, truth, record, title):
+    """curves.png: the curves; below them, for a fit refitted by output error, the measured x against
+    the model's free run over the whole record and the residual (the diagnostics panel)."""
+    from ..fitting import free_run_diagnostics
+    from ..report import plot_curves, plot_free_run
+
+    diag = free_run_diagnostics(model, record) if record is not None else None
+    if diag is None:
+        return plot_curves(model, truth, title=title)
+    import matplotlib.pyplot as plt
+
+    n = len(model.curves)
+    fig = plt.figure(figsize=(5.0 * n, 3.8 + 4.4))
+    grid = fig.add_gridspec(3, n, height_ratios=(1.5, 1.0, 0.7))
+    plot_curves(model, truth, axes=[fig.add_subplot(grid[0, k]) for k in range(n)])
+    top = fig.add_subplot(grid[1, :])
+    plot_free_run(*diag, axes=[top, fig.add_subplot(grid[2, :], sharex=top)])
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def write_results(model, out_dir, *, method, family, free_gain, truth, figure, quiet, source, elapsed, warnings=(),
+                  record=None):
     """result.json (what the inputs and the seed determine, bit-identical on reruns; standard JSON:
     non-finite numbers as null, listed under ``non_finite``), timing.json (wall-clock times), the
     model, curves.png and summary.txt. ``warnings`` (one line each, about the record) go to stderr
@@ -121,9 +145,7 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
         import matplotlib
 
         matplotlib.use("Agg")
-        from ..report import plot_curves
-
-        fig = plot_curves(model, truth, title=f"{method}: {model.template.equation}")
+        fig = _curves_figure(model, truth, record, f"{method}: {model.template.equation}")
         fig.savefig(os.path.join(out_dir, "curves.png"), dpi=120)
         import matplotlib.pyplot as plt
 

@@ -37,6 +37,7 @@ from ._objectives import OBJECTIVES as OBJECTIVES
 from ._objectives import EquationError as EquationError
 from ._objectives import OutputError as OutputError
 from ._output_error import closed_form_text as closed_form_text
+from ._output_error import free_run_diagnostics as free_run_diagnostics
 from ._output_error import output_error_fit as output_error_fit
 from ._output_error import refine_output_error as refine_output_error
 from ._output_error import summary_lines as summary_lines

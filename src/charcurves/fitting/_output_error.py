@@ -21,7 +21,8 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ._objectives import OutputError
 
-__all__ = ["output_error_fit", "refine_output_error", "closed_form_text", "summary_lines", "choose_substeps",
+__all__ = ["free_run_diagnostics", "output_error_fit", "refine_output_error", "closed_form_text", "summary_lines",
+           "choose_substeps",
            "choose_segment_length"]
 
 
@@ -275,13 +276,10 @@ def _members(loss: np.ndarray, gammas, n_data: int, preset):
     return np.flatnonzero(loss <= loss[best] * (1.0 + preset.combine_tol)), best, None
 
 
-def _free_run_rmse(model, record, meas_cols, y0, hold, substeps):
-    """RMSE of one free run of the whole record (separable family; None for other templates or
-    without measured positions)."""
+def _free_run_x(model, record, y0, hold, substeps):
+    """One free run of the whole record from ``y0`` (separable family): (x, status)."""
     from ..data import rk4_sampled, stage_inputs
 
-    if model.template.is_general or meas_cols is None:
-        return None
     f1, f2 = _fast_float(model.curves["f1"]), _fast_float(model.curves["f2"])
     g, b = float(model.gain), float(model.offset)
 
@@ -290,9 +288,36 @@ def _free_run_rmse(model, record, meas_cols, y0, hold, substeps):
 
     ua, um, ub = stage_inputs(np.asarray(record.F, dtype=float), substeps, hold)
     x, _, status = rk4_sampled(accel, ua, um, ub, float(y0[0]), float(y0[1]), _uniform_step(record), substeps)
+    return np.asarray(x, dtype=float), status
+
+
+def _free_run_rmse(model, record, meas_cols, y0, hold, substeps):
+    """RMSE of one free run of the whole record (separable family; None for other templates or
+    without measured positions)."""
+    if model.template.is_general or meas_cols is None:
+        return None
+    x, status = _free_run_x(model, record, y0, hold, substeps)
     if status != "ok":
         return float("inf")
-    return float(np.sqrt(np.mean((np.asarray(x) - meas_cols["x"]) ** 2)))
+    return float(np.sqrt(np.mean((x - meas_cols["x"]) ** 2)))
+
+
+def free_run_diagnostics(model, record):
+    """``(t, measured x, free-run x)`` of a model refitted by output error on ``record`` (the
+    measured positions, and one free run of the whole record from the initial state output error
+    estimated, with its input hold and RK4 steps); None when output error did not run, for
+    templates other than the separable one, or when the record has no measured x."""
+    from ..data import Trajectory
+
+    oe = model.info.get("output_error") or {}
+    if not str(oe.get("status", "")).startswith(("ok", "interrupted")) or model.template.is_general:
+        return None
+    if not isinstance(record, Trajectory) or "initial_state" not in oe:
+        return None
+    x, status = _free_run_x(model, record, oe["initial_state"], oe["hold"], int(oe["substeps"]))
+    if status != "ok":
+        x = np.where(np.isfinite(x), x, np.nan)
+    return np.asarray(record.t, dtype=float), np.asarray(record.x, dtype=float), x
 
 
 def _fast_float(curve, n: int = 8193):

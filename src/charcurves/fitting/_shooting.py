@@ -114,7 +114,7 @@ class ShootingProblem(LeastSquaresProblem):
             for j in b.frozen:
                 frozen[self.block_offsets[i] + j] = True
         self.frozen = frozen if bool(frozen.any()) else None
-        self.A_inv_list = [[float(a) for a in row] for row in forward.A_inv]
+        self.A_inv_list = None if forward.divides else [[float(a) for a in row] for row in forward.A_inv]
         self._compiled = None
         self._out_w = 1.0 / math.sqrt(self.n_data)
 
@@ -156,9 +156,10 @@ class ShootingProblem(LeastSquaresProblem):
             k0 = eq["known0"]
             mult = {n: (m.constant, m) for n, m in eq["mult"].items()}
             eqs.append((e, k0.constant, k0, force, inp, mult, eq["scalars"]))
+        self._mult_top = {n: (m.constant, m) for n, m in fm.equations[0]["mult_top"].items()} if fm.divides else {}
         simple = all(c[3] is not None for c in curves) and all(
             q[1] is not None and q[3] is not None and not q[6] and all(m[0] is not None for m in q[5].values())
-            for q in eqs)
+            for q in eqs) and all(m[0] is not None for m in self._mult_top.values())
         self._compiled = (curves, eqs, simple)
         return self._compiled
 
@@ -229,6 +230,8 @@ class ShootingProblem(LeastSquaresProblem):
             r0.append(r)
             ry_all.append(ry)
             rt_all.append(rt)
+        if self.forward.divides:
+            return self._divided(theta, y, cv, r0[0], ry_all[0], rt_all[0], vals, like, need_jac)
         A = self.A_inv_list
         tops = []
         for u in range(len(A)):
@@ -259,6 +262,36 @@ class ShootingProblem(LeastSquaresProblem):
                 _acc(coef, ry_all[e], -a)
                 Tt = -a * rt_all[e] if Tt is None else Tt - a * rt_all[e]
             recipes.append(("top", coef, Tt))
+        return dy, recipes
+
+    def _divided(self, theta, y, cv, r, ry, rt, vals, like, need_jac):
+        """One equation ``r + c top = 0`` with ``c = A + sum_i m_i f_i``: ``top = -r / c``, and its
+        tangent ``-(dr + top dc) / c``."""
+        fm = self.forward
+        c = fm.A[0][0]
+        cy: dict = {}
+        ct = like.new_zeros(*like.shape, self.n_shared) if need_jac else None
+        for name, (mc, msig) in self._mult_top.items():
+            Fv, dF, JF, du, bi = cv[name]
+            m = mc if mc is not None else msig.value(vals, like)
+            c = c + m * Fv
+            if need_jac:
+                if mc is None:
+                    _acc(cy, msig.grad(vals, like), Fv)
+                _acc(cy, du, m * dF)
+                o = self.block_offsets[bi]
+                ct[..., o:o + self.blocks[bi].n_params] += (m.unsqueeze(-1) if torch.is_tensor(m) else m) * JF
+        top = -r / c
+        cols = [y[..., j] if (j := fm.derivative_of(i)) is not None else top for i in range(self.D)]
+        dy = torch.stack(cols, dim=-1)
+        if not need_jac:
+            return dy, None
+        coef: dict = {}
+        _acc(coef, ry, -1.0 / c)
+        _acc(coef, cy, -top / c)
+        Tt = -(rt + top.unsqueeze(-1) * ct) / c.unsqueeze(-1)
+        recipes = [("copy", j) if (j := fm.derivative_of(i)) is not None else ("top", coef, Tt)
+                   for i in range(self.D)]
         return dy, recipes
 
     # ------------------------------------------------------------------ simulation

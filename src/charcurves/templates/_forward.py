@@ -10,8 +10,10 @@ fitter, which owns their parameters):
 * ``known0_e``, the known part with the top derivatives at 0, and the input ``input_e``;
 * each curve's argument ``u_i(y)`` and coefficient ``m_ie(y)``; each scalar's signal ``s_je(y)``.
 
-The top derivatives may appear only in the known part, with constant coefficients (``A``), as in
-every built-in family; other templates cannot be simulated this way and say so.
+The top derivatives may appear in the known part, with constant coefficients (``A``), as in the
+second-order families; in a template of one equation they may also be a factor of curves
+(``f1(x) + f2(x) x' = F``: the top derivative is ``-r0 / (A + sum_i m_i f_i)``, see ``divides``).
+Other templates cannot be simulated this way and say so.
 """
 
 from __future__ import annotations
@@ -20,6 +22,13 @@ from .._errors import ConfigError
 from ._structure import EquationTemplate
 
 __all__ = ["ForwardModel", "Signal"]
+
+
+def _shown(text) -> str:
+    """Internal derivative names as people write them: ``x__d2`` -> ``x''``."""
+    import re
+
+    return re.sub(r"(\w+?)__d(\d)", lambda m: m.group(1) + "'" * int(m.group(2)), str(text))
 
 
 class Signal:
@@ -83,8 +92,11 @@ class ForwardModel:
         The ODE state: each state and its lower derivatives (``["x", "x__d1"]``).
     top : list of str
         The highest derivative of each state (``["x__d2"]``), one per equation.
-    A_inv : list of list of float
-        Inverse of the constant matrix of the top derivatives in the equations.
+    A_inv : list of list of float or None
+        Inverse of the constant matrix of the top derivatives in the equations (None when
+        ``divides``).
+    divides : bool
+        One equation whose top derivative is also a factor of curves (``mult_top``).
     """
 
     def __init__(self, template: EquationTemplate):
@@ -111,31 +123,56 @@ class ForwardModel:
         self.curves: dict[str, Signal] = {}
         self.equations = []
         A = np.zeros((template.n_equations, len(self.top)))
+        single = template.n_equations == 1
         for e, eq in enumerate(template.equations):
-            for part in (eq.input, *eq.curves.values(), *eq.scalars.values(),
-                         *(template.argument_exprs[n] for n in eq.curves)):
+            for part in (eq.input, *eq.scalars.values(), *(template.argument_exprs[n] for n in eq.curves),
+                         *([] if single else eq.curves.values())):
                 if set(sp.sympify(part).free_symbols) & set(top_syms):
-                    raise ConfigError(f"equation {e + 1} has {', '.join(self.top)} inside a curve, a coefficient, a "
-                                      "scalar term or the input; output error needs the highest derivatives in the "
-                                      "known part only (use objective='equation-error' for this template)")
+                    raise ConfigError(f"equation {e + 1} has {_shown(', '.join(self.top))} inside a curve's "
+                                      "argument, a coefficient, a scalar term or the input; output error needs the "
+                                      "highest derivatives in the known part or as a factor of curves of one equation "
+                                      "(use objective='equation-error' for this template)")
+            mult0, mult_top = {}, {}
+            for n, m in eq.curves.items():
+                m = sp.sympify(m)
+                if single and top_syms[0] in m.free_symbols:  # f2(x) * x' of the first-order family
+                    m1 = sp.expand(sp.diff(m, top_syms[0]))
+                    if top_syms[0] in m1.free_symbols:
+                        raise ConfigError(f"equation {e + 1}: {_shown(self.top[0])} enters the factor {_shown(m)} "
+                                          f"of {n} nonlinearly; "
+                                          "output error needs it linear (use objective='equation-error')")
+                    m0 = sp.expand(m - m1 * top_syms[0])
+                    mult_top[n] = Signal(m1, [], layout_syms)
+                    if m0 != 0:
+                        mult0[n] = Signal(m0, [], layout_syms)
+                else:
+                    mult0[n] = Signal(m, [], layout_syms)
             known = sp.sympify(eq.known)
             for j, ts in enumerate(top_syms):
                 coef = sp.diff(known, ts)
                 if coef.free_symbols:
-                    raise ConfigError(f"equation {e + 1}: {self.top[j]} enters with the coefficient {coef}, which "
+                    raise ConfigError(f"equation {e + 1}: {_shown(self.top[j])} enters with the coefficient "
+                                      f"{_shown(coef)}, which "
                                       "depends on the data; output error needs constant coefficients")
                 A[e, j] = float(coef)
             known0 = known.subs({ts: 0 for ts in top_syms})
             self.equations.append({
                 "known0": Signal(known0, [], layout_syms),
                 "input": Signal(eq.input, [], layout_syms),
-                "mult": {n: Signal(m, [], layout_syms) for n, m in eq.curves.items()},
+                "mult": mult0,
+                "mult_top": mult_top,
                 "scalars": {s: Signal(sig, [], layout_syms) for s, sig in eq.scalars.items()},
             })
-        if abs(np.linalg.det(A)) < 1e-12:
-            raise ConfigError(f"the equations cannot be solved for {', '.join(self.top)} (singular); output error "
-                              "needs one equation per state")
-        self.A_inv = np.linalg.inv(A).tolist()
+        self.A = A.tolist()
+        #: the top derivative is ``-r0 / (A + sum_i m_i f_i)`` (one equation with curves as its factor)
+        self.divides = bool(self.equations[0]["mult_top"]) if single else False
+        if self.divides:
+            self.A_inv = None
+        else:
+            if abs(np.linalg.det(A)) < 1e-12:
+                raise ConfigError(f"the equations cannot be solved for {_shown(', '.join(self.top))} (singular); "
+                                  "output error needs one equation per state")
+            self.A_inv = np.linalg.inv(A).tolist()
         for n in template.curve_names:
             self.curves[n] = Signal(template.argument_exprs[n], [], layout_syms)
 
