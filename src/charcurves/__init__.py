@@ -19,7 +19,7 @@ __version__ = VERSION
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 # public name -> module that defines it (loaded on first attribute access)
-_LAZY = {
+_LAZY: dict[str, str | tuple[str, str]] = {
     # data
     "Trajectory": "charcurves.data",
     "MultiTrajectory": "charcurves.data",
@@ -79,7 +79,8 @@ __all__ = sorted(_LAZY) + ["__version__"]
 
 def __getattr__(name: str):
     if name in _LAZY:
-        module, attr = _LAZY[name] if isinstance(_LAZY[name], tuple) else (_LAZY[name], name)
+        entry = _LAZY[name]
+        module, attr = entry if isinstance(entry, tuple) else (entry, name)
         value = getattr(importlib.import_module(module), attr)
         globals()[name] = value
         return value

@@ -91,7 +91,7 @@ class AbstractCurve(abc.ABC):
     def __eq__(self, other: object) -> bool:
         return type(self) is type(other) and self.get_params() == other.get_params()  # type: ignore[union-attr]
 
-    __hash__ = None  # type: ignore[assignment]  (mutable through set_params)
+    __hash__ = None  # type: ignore[assignment]  # mutable through set_params
 
     # ------------------------------------------------------------------ what fitters use
     @property

@@ -423,8 +423,9 @@ def _plain(obj):
     return obj
 
 
-_KINDS = {"neural": NeuralFittedCurve, "basis": BasisFittedCurve, "symbolic": SymbolicFittedCurve,
-          "linear": LinearFittedCurve}
+# kind -> a FittedCurve subclass with a ``from_spec`` classmethod
+_KINDS: dict[str, Any] = {"neural": NeuralFittedCurve, "basis": BasisFittedCurve, "symbolic": SymbolicFittedCurve,
+                          "linear": LinearFittedCurve}
 
 
 def register_curve_kind(cls) -> None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import torch
 
@@ -123,7 +124,7 @@ class BatchedMLP:
         # backward sweep: delta_l = d y / d z_l, shape (K, N, n_out_l)
         N = y.shape[1]
         delta = torch.ones(K, N, 1, dtype=theta.dtype, device=theta.device)
-        blocks = [None] * len(layers)
+        blocks: list[Any] = [None] * len(layers)  # each filled below
         for i in range(len(layers) - 1, -1, -1):
             W, _ = layers[i]
             hin = inputs[i]
@@ -132,5 +133,6 @@ class BatchedMLP:
             if i > 0:
                 delta = torch.bmm(delta, W.transpose(1, 2)) * derivs[i - 1]
         if with_input_derivative:
+            assert dh is not None
             return y, torch.cat(blocks, dim=2), dh.squeeze(-1)
         return y, torch.cat(blocks, dim=2)

@@ -217,7 +217,7 @@ class NeuralCurve:
                                         with_input_derivative=derivative)
         yb, Jb = out[0], out[1]
         s = -1.0 if sym == "odd" else 1.0
-        res = (0.5 * (yb[:, :n] + s * yb[:, n:]), 0.5 * (Jb[:, :n] + s * Jb[:, n:]), u)
+        res: tuple = (0.5 * (yb[:, :n] + s * yb[:, n:]), 0.5 * (Jb[:, :n] + s * Jb[:, n:]), u)
         if derivative:  # d/du of h(-u) is -h'(-u)
             db = out[2]
             res = (*res, 0.5 * (db[:, :n] - s * db[:, n:]))

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -25,7 +26,7 @@ __all__ = ["CurveRefit", "trainable", "SymbolicParametrisation"]
 class CurveRefit:
     """A fitted curve as ``shift + out_scale * param.evaluate(theta, (z - center) / half_width)``."""
 
-    param: object
+    param: Any  # a parametrisation (NeuralCurve, LinearParametrisation, SymbolicParametrisation, ...)
     theta: np.ndarray  # (members, n_params)
     center: float
     half_width: float
@@ -70,16 +71,16 @@ def trainable(curve) -> CurveRefit:
                           curve.shift + curve.constant, rebuild,
                           [f"{curve.name}:{n}" for n in curve.representation.feature_names()])
     if isinstance(curve, SymbolicFittedCurve):
-        param = SymbolicParametrisation(curve._expr)
+        sym_param = SymbolicParametrisation(curve._expr)
 
         def rebuild(theta):
             from ._fitted import SymbolicFittedCurve as S
 
-            return S(curve.name, curve.argument, curve.domain, param.expression(np.asarray(theta).mean(axis=0)),
+            return S(curve.name, curve.argument, curve.domain, sym_param.expression(np.asarray(theta).mean(axis=0)),
                      curve.shift, dict(curve.meta))
 
-        return CurveRefit(param, param.theta0[None, :].copy(), 0.0, 1.0, 1.0, curve.shift, rebuild,
-                          [f"{curve.name}:{lab}" for lab in param.labels])
+        return CurveRefit(sym_param, sym_param.theta0[None, :].copy(), 0.0, 1.0, 1.0, curve.shift, rebuild,
+                          [f"{curve.name}:{lab}" for lab in sym_param.labels])
     raise ConfigError(f"curve {getattr(curve, 'name', '?')} of kind {getattr(curve, 'kind', type(curve).__name__)!r} "
                       "cannot be trained further")
 
@@ -91,7 +92,7 @@ class SymbolicParametrisation:
     exact_symmetry = "none"
     symmetry_mode = "exact"
 
-    def __init__(self, expr):
+    def __init__(self, expr) -> None:
         import sympy as sp
 
         self.z = sp.Symbol("z")

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -120,6 +121,8 @@ def rk4_sampled(accel: Callable, u_start, u_mid, u_end, x0, v0, dt: float, subst
     scalar = np.ndim(x0) == 0 and np.ndim(v0) == 0 and np.ndim(u_start[0]) == 0
     h = dt / substeps
     deadline = None if time_budget is None else time.monotonic() + float(time_budget)
+    xs: Any  # the samples: a list of floats (scalar state) or an array (a batch)
+    vs: Any
     if scalar:
         # plain Python floats: ~100x faster per step than 0-d numpy arrays
         x, v = float(x0), float(v0)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -95,7 +95,7 @@ class _SampledRecord:
             )
 
     def replace(self, **changes: Any):
-        return dataclasses.replace(self, **changes)
+        return dataclasses.replace(cast(Any, self), **changes)  # the subclasses are dataclasses
 
     def _gap_warnings(self) -> list[str]:
         return gap_warnings(self.t)

@@ -67,12 +67,13 @@ METHOD_GROUPS = {
 }
 
 #: The quick grid: minutes on a 2-core machine (Appendix F with one realisation per level).
-QUICK = {"snr_db": (40.0, 20.0, 0.0), "realizations": 2, "appendix_f_realizations": 1, "forward_cases": 2,
-         "miw_seeds": 10, "miw_realizations": 5, "lyapunov_time": 1000.0, "case_time_budget": 5.0,
-         "sr_generations": 20}
+QUICK: dict[str, Any] = {
+    "snr_db": (40.0, 20.0, 0.0), "realizations": 2, "appendix_f_realizations": 1, "forward_cases": 2,
+    "miw_seeds": 10, "miw_realizations": 5, "lyapunov_time": 1000.0, "case_time_budget": 5.0, "sr_generations": 20}
 #: ``full``: the paper's sizes (the grid itself is :data:`PAPER_SNR_DB` x 10).
-FULL = {"appendix_f_realizations": 10, "forward_cases": 10, "miw_seeds": 100, "miw_realizations": 10,
-        "lyapunov_time": 5000.0, "case_time_budget": 20.0, "sr_generations": None}
+FULL: dict[str, Any] = {
+    "appendix_f_realizations": 10, "forward_cases": 10, "miw_seeds": 100, "miw_realizations": 10,
+    "lyapunov_time": 5000.0, "case_time_budget": 20.0, "sr_generations": None}
 
 
 # ---------------------------------------------------------------------- option parsing
@@ -324,6 +325,7 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
                   preset=preset, t_end=t_end, n_points=n_points, base_seed=base_seed, tag=BENCHMARK_TAG,
                   method_options=_sr_budget(methods, sizes["sr_generations"]))
     store = os.path.join(out_dir, "results.sqlite")
+    assert not isinstance(sweep.realizations, int)  # Sweep made it a tuple
     _log(progress, f"main sweep: {len(sweep.jobs())} jobs ({len(systems)} systems x {len(methods)} methods x "
                    f"{len(sweep.snr_db)} SNR levels x {len(sweep.realizations)} realisations), "
                    f"{sizes['forward_cases']} validation cases per model")

@@ -41,7 +41,7 @@ class StopSignals:
     (the signal is held until the row is committed and counted). Only in the main thread: signal
     handlers cannot be installed elsewhere, and there the default Ctrl-C behaviour stays."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.received: str | None = None
         self.deferring = False
         self._old: dict = {}

@@ -39,7 +39,7 @@ SOURCES = {
 #: Table 1: MIW_range, MIW_99 of f2 residuals at 20 dB. "seeds": 100 training runs on one dataset
 #: (Fig. 4 b, e); "realizations": 10 noise realisations, one run each (Fig. 4 c, f).
 #: The paper prints "<1e-4" for MIW_99 of the seed ensembles; stored here as 1e-4 with ``"<"``.
-TABLE1_MIW = {
+TABLE1_MIW: dict[tuple[str, str], tuple[float, float | str]] = {
     ("seeds", "nn-cc"): (0.022, "<1e-4"),
     ("seeds", "nn-cc+sym"): (0.013, "<1e-4"),
     ("seeds", "nn-cc+sym+post-sr"): (0.004, "<1e-4"),
@@ -50,7 +50,7 @@ TABLE1_MIW = {
 
 #: Table 2: slope-1 A of RMSE[f1], RMSE[f2] (Duffing, noise on the forcing). SR: fitted at
 #: SNR >= -18 dB only (the table's asterisk). SINDy has no entry (spurious cross terms).
-TABLE2_DUFFING_A = {
+TABLE2_DUFFING_A: dict[str, tuple[float, float]] = {
     "parametric": (0.0109, 0.0158),
     "sr-cc": (0.0119, 0.0289),
     "sindy-cc+sym+post-sr": (0.0207, 0.0179),
@@ -66,7 +66,7 @@ TABLE2_DUFFING_A = {
 
 #: Table 3: A of RMSE[f1], RMSE[f2], RMSE[x] (stick-slip). None: no value in the paper.
 #: SINDy-CC and Poly-CC are bias fits sqrt(b^2 + (A eta)^2); SR at SNR > -12 dB only.
-TABLE3_STICK_SLIP_A = {
+TABLE3_STICK_SLIP_A: dict[str, tuple[float, float, float | None]] = {
     "parametric": (0.061, 0.028, 0.065),
     "nn-cc+sym+post-sr": (0.111, 0.106, 0.133),
     "sr-cc": (0.190, 0.041, 0.248),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+from typing import cast
 
 import numpy as np
 
@@ -39,9 +40,10 @@ def forward_panels(rep, df, ctx) -> None:
     chosen = [m for m in prefer if m in set(avail["method"])] or list(dict.fromkeys(avail["method"]))[:3]
     from ..fitting import load_model
     from ..simulate import simulate_model
-    from ..systems import get_system
+    from ..systems import BenchmarkSystem, get_system
 
     system = get_system("duffing", str(avail["variant"].iloc[0]))
+    assert isinstance(system, BenchmarkSystem)
     p = system.parameters()
     t = np.linspace(0.0, 40.0, 1000)
     ics = [("training ICs", p["x0"], p["v0"]), ("new ICs x0 = 0.6, v0 = −0.1", 0.6, -0.1)]
@@ -88,6 +90,7 @@ def phase_space(rep, df, ctx, extras) -> None:
         variant = ctx.sweep.variant_of(name) if ctx is not None else "paper"
         system = get_system(name, variant)
         train = system.simulate()
+        assert train.v is not None  # a simulated record has the velocity
         box = training_box(train)
         sig = {"system": name, "variant": variant, "cases": 10}
         others = extras.get(f"phase:{name}:{variant}", sig)
@@ -95,7 +98,9 @@ def phase_space(rep, df, ctx, extras) -> None:
             # a picture only: looser tolerances than the validation itself, about 3x faster
             loose = get_system(name, variant, rtol=1e-6, atol=1e-8)
             cases = make_validation_cases(loose, 10, seed=0, box=box, warn=False)
-            others = [(c.x_true[::2].tolist(), c.v_true[::2].tolist()) for c in cases]
+            # make_validation_cases fills the true trajectories
+            others = [(cast(np.ndarray, c.x_true)[::2].tolist(), cast(np.ndarray, c.v_true)[::2].tolist())
+                      for c in cases]
             extras.put(f"phase:{name}:{variant}", sig, others)
         plot_phase_space(train.x, train.v, ax=axes[i][0], box=box, title=f"{name}: training record")
         plot_phase_space([], [], ax=axes[i][1], box=box, others=others,

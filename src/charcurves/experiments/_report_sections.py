@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -180,9 +181,10 @@ def _a_rows(df, fits, system: str, terms: tuple[str, ...]):
             f = fits["mean"].get((system, preset, method))
             if f is None:
                 continue
-            r = [method, preset]
+            r: list[Any] = [method, preset]
             for t in terms:
                 r.append(f["A"].get(t, float("nan")))
+            pa: tuple[float | None, ...]
             if system == "duffing":
                 pa = paper.TABLE2_DUFFING_A.get(method, (None, None))
                 rows.append(r + [pa[0], pa[1], fits["rms"][(system, preset, method)]["A"]["f1"],

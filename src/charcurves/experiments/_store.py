@@ -63,6 +63,7 @@ def _now() -> str:
 
 def _jsonable(obj: Any) -> Any:
     """Plain JSON types; non-finite floats become strings ("nan", "inf") so the blob stays valid JSON."""
+    np: Any
     try:
         import numpy as np
     except ImportError:  # pragma: no cover
@@ -168,7 +169,7 @@ class ResultsStore:
                 raise ConfigError(f"status must be 'ok' or 'failed', got {status!r}")
             values = list(key)
             for c in VALUE_COLUMNS:
-                v = row.get(c)
+                v: Any = row.get(c)
                 if hasattr(v, "item"):
                     v = v.item()
                 if isinstance(v, float) and math.isnan(v):

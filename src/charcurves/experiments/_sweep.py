@@ -257,6 +257,7 @@ class Sweep:
                 if evaluation:
                     cfg["forward"] = dict(evaluation)
                 config = json.dumps(_jsonable(cfg), sort_keys=True, separators=(",", ":"))
+                assert not isinstance(self.realizations, int)  # __post_init__ made it a tuple
                 for snr in self.snr_db:
                     for r in self.realizations:
                         out.append(Job(

@@ -33,7 +33,7 @@ def ensemble_table(df, value: str, how: str = "mean") -> dict[tuple, tuple[np.nd
     ``how`` as :func:`charcurves.metrics.ensemble_rmse` (levels in descending SNR order)."""
     from ..metrics import ensemble_by_level
 
-    out = {}
+    out: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     if value not in df.columns:  # e.g. rows without forward validation have no rmse_x
         return out
     ok = _ok(df)

@@ -227,7 +227,7 @@ class CaseResult:
     seconds: float
 
     def to_dict(self) -> dict[str, Any]:
-        d = self.case.to_dict()
+        d: dict[str, Any] = self.case.to_dict()
         d.update(status=self.status, message=self.message, t_sep=self.t_sep, censored=self.censored,
                  rmse_x=self.rmse_x, rmse_v=self.rmse_v, t_end_reached=self.t_end_reached,
                  seconds=round(self.seconds, 4))

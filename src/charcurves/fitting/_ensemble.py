@@ -10,10 +10,14 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._errors import ConfigError
+
+if TYPE_CHECKING:
+    from ._model import FittedModel
 
 __all__ = ["Ensemble", "fit_ensemble", "fit_ensembles", "bootstrap_records", "ENSEMBLE_KINDS", "MIN_MEMBERS",
            "check_band_options"]
@@ -39,8 +43,8 @@ class Ensemble:
     kind : str
     """
 
-    point: object
-    members: list
+    point: FittedModel
+    members: list[FittedModel]
     record: object
     kind: str
 

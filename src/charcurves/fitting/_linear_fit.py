@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from typing import Any
 
 import numpy as np
 
@@ -90,7 +91,8 @@ def fit_linear(record, template: EquationTemplate, reps: dict, *, method: str, m
     carriers = {nm for nm in names if isinstance(reps[nm], Polynomial)
                 or (isinstance(reps[nm], SparseLibrary) and template.family != "separable")} if constant else set()
     scalings, pinned = {}, {}
-    cols, owners = [], []
+    cols: list = []
+    owners: list[tuple[str, Any]] = []  # (curve name or "__scalar"/"__offset", what the column is)
     for nm in _argument_order(template):
         rep = reps[nm]
         u_raw = D["args"][nm]

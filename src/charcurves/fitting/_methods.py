@@ -107,8 +107,8 @@ def parse_basis_option(text, curve_names=("f1", "f2"), *, family: str = "separab
     missing = [c for c in curve_names if not out.get(c)]
     if missing:
         raise ConfigError(f"no basis functions for {missing}; write e.g. \"f1=z; f2=z, z**3\"")
-    for funcs in out.values():
-        for f in funcs:
+    for fs in out.values():
+        for f in fs:
             parse_basis_function(f)
     return out
 
@@ -142,7 +142,7 @@ def method_curve(method: str, name: str, *, symmetry: str, jump, options: dict, 
         return Neural(hidden=tuple(hidden) if hidden else None, activation=activation, symmetry=sym, jump=j)
     if rep == "poly":
         kw = {k: options[k] for k in ("degree", "rescaling", "basis", "expand_tol") if k in options}
-        curve = Polynomial(symmetry=sym, **kw)
+        curve: Polynomial | SparseLibrary = Polynomial(symmetry=sym, **kw)
         curve.check()
         return curve
     if rep == "sindy":

@@ -184,7 +184,7 @@ class FittedModel:
             # symmetry="auto": the parities imposed and the tests behind them (charcurves.selection)
             **({"symmetry": _jsonable(self.info["symmetry_auto"])} if "symmetry_auto" in self.info else {}),
             # uncertainty bands from an ensemble, when computed (charcurves.selection.attach_bands)
-            **({"bands": _jsonable(self.bands)} if getattr(self, "bands", None) else {}),
+            **({"bands": _jsonable(bands)} if (bands := getattr(self, "bands", None)) else {}),
             "info": _split_timings(_jsonable(self.info))[0],
         }
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Any
 
 import numpy as np
 
@@ -114,7 +115,7 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
 
     started = time.perf_counter()
     template = model.template
-    report = {"objective": "output-error", "hold": settings.hold}
+    report: dict[str, Any] = {"objective": "output-error", "hold": settings.hold}
     try:
         fm = ForwardModel(template)
         dt = _uniform_step(measured)
@@ -144,19 +145,19 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     restore = {}
     for name in template.curve_names:
         rf = refits[name]
-        theta = np.repeat(rf.theta, M // rf.theta.shape[0] + 1, axis=0)[:M] if rf.theta.shape[0] != M else rf.theta
-        theta = np.array(theta, dtype=float)
+        theta_c = np.repeat(rf.theta, M // rf.theta.shape[0] + 1, axis=0)[:M] if rf.theta.shape[0] != M else rf.theta
+        theta_c = np.array(theta_c, dtype=float)
         frozen = []
         sl = rf.param.slices() if hasattr(rf.param, "slices") else {}
         if "jump_log_eps" in sl:  # train with a width RK4 integrates; the sharp one comes back afterwards
             j = sl["jump_log_eps"].start
-            restore[name] = np.full(theta.shape[0], -60.0)  # afterwards: the sharp step (Coulomb's sign)
-            theta[:, j] = _smooth_jump_raw(rf, prep_cols, fm, name, substeps, dt)
+            restore[name] = np.full(theta_c.shape[0], -60.0)  # afterwards: the sharp step (Coulomb's sign)
+            theta_c[:, j] = _smooth_jump_raw(rf, prep_cols, fm, name, substeps, dt)
             frozen.append(j)
         param = rf.param if rf.param.decay_groups() or not settings.bayesian else _Ridge(rf.param)
         blocks.append(CurveBlock(name, param, col(rf.center), col(rf.half_width), col(rf.out_scale), col(rf.shift),
                                  frozen))
-        parts.append(T(theta))
+        parts.append(T(theta_c))
     sc = model.scalars
     for s in scalars:
         parts.append(col(sc.get(s, 0.0)))

@@ -24,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import torch
 
@@ -36,7 +37,7 @@ DECAY_GROUPS = ("shared", "per-curve", "per-layer")
 class CurveTerm:
     """One curve of the equation: its settings and its (scaled) argument per model."""
 
-    curve: object  # a parametrisation (NeuralCurve, LinearParametrisation, ...)
+    curve: Any  # a parametrisation (NeuralCurve, LinearParametrisation, ...)
     u: torch.Tensor  # (K, N) scaled arguments
     multiplier: torch.Tensor | None = None  # (K, N)
     sym_points: torch.Tensor | None = None  # (K, N_sym) scaled points for the penalty
@@ -58,6 +59,12 @@ class LeastSquaresProblem:
 
     bayesian: bool = False
     decay_groups: str = "shared"
+    # set by the subclasses (annotations only: no class attributes)
+    y: torch.Tensor
+    weight_decay: Any
+    n_params: int
+    decay_index: torch.Tensor | None
+    decay_group: torch.Tensor | None
 
     def _setup_decay(self, blocks, n_params: int) -> None:
         """Decay mask and groups from ``blocks`` = [(offset, parametrisation), ...]."""
@@ -93,6 +100,7 @@ class LeastSquaresProblem:
     def refresh_decay_rows(self, theta: torch.Tensor, r: torch.Tensor, J: torch.Tensor) -> None:
         """Update, in place, the residual and Jacobian rows of the weight decay (the last rows)."""
         idx = self.decay_index
+        assert idx is not None  # called only when the problem has decay rows
         m = idx.numel()
         sq = self._sqrt_wd if self._sqrt_wd.dim() else self._sqrt_wd.expand(theta.shape[0], 1)
         r[:, -m:] = sq * theta[:, idx]
@@ -187,11 +195,13 @@ class BatchedProblem(LeastSquaresProblem):
     def gain_of(self, theta: torch.Tensor) -> torch.Tensor:
         """The free coefficient: g (gain_on="acceleration") or h = 1/g (gain_on="force")."""
         if self.free_gain:
+            assert self.gain_index is not None
             return theta[:, self.gain_index : self.gain_index + 1]
         return torch.full((theta.shape[0], 1), float(self.gain), dtype=theta.dtype, device=theta.device)
 
     def bias_of(self, theta: torch.Tensor) -> torch.Tensor:
         if self.bias:
+            assert self.bias_index is not None
             return theta[:, self.bias_index : self.bias_index + 1]
         return torch.zeros(theta.shape[0], 1, dtype=theta.dtype, device=theta.device)
 
@@ -233,10 +243,11 @@ class BatchedProblem(LeastSquaresProblem):
         if self.bias:
             J[:, :, self.bias_index] = 1.0
         r = [self.weights * pred]
-        J = [self.weights.unsqueeze(-1) * J]
+        Js = [self.weights.unsqueeze(-1) * J]
         for i in self.penalised:
             term = self.terms[i]
             z = term.sym_points
+            assert z is not None  # penalised terms have symmetry points
             n = z.shape[1]
             f, Ji = term.curve.evaluate_jacobian(self.block(theta, i), torch.cat([z, -z], dim=1))
             s = -1.0 if term.curve.symmetry == "odd" else 1.0
@@ -245,15 +256,15 @@ class BatchedProblem(LeastSquaresProblem):
             o = self.offsets[i]
             Jp[:, :, o : o + term.curve.n_params] = c * (Ji[:, :n] - s * Ji[:, n:])
             r.append(c * (f[:, :n] - s * f[:, n:]))
-            J.append(Jp)
+            Js.append(Jp)
         if self.decay_index is not None:
             m = self.decay_index.numel()
             Jd = theta.new_zeros(K, m, self.n_params)
             Jd[:, torch.arange(m, device=theta.device), self.decay_index] = (
                 self._sqrt_wd.expand(K, m) if self._sqrt_wd.dim() else self._sqrt_wd)
             r.append(self._sqrt_wd * theta[:, self.decay_index])
-            J.append(Jd)
-        return torch.cat(r, dim=1), torch.cat(J, dim=1)
+            Js.append(Jd)
+        return torch.cat(r, dim=1), torch.cat(Js, dim=1)
 
     def loss(self, theta: torch.Tensor) -> torch.Tensor:
         """Total loss per model, ``(K,)``."""

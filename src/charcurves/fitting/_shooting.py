@@ -16,6 +16,7 @@ Parameters per row: ``[curve blocks | scalars | offsets | gain | initial states 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import torch
 
@@ -192,7 +193,7 @@ class ShootingProblem(LeastSquaresProblem):
             u_in = stage[force] if force is not None else inp.value(vals, like)
             r = (k0c if k0c is not None else k0.value(vals, like)) - g * u_in
             ry: dict = {}
-            rt = None
+            rt: Any = None  # (B, S, P_shared) when need_jac
             if need_jac:
                 rt = like.new_zeros(*like.shape, self.n_shared)
                 if k0c is None:
@@ -247,7 +248,7 @@ class ShootingProblem(LeastSquaresProblem):
         dy = torch.stack(cols, dim=-1)
         if not need_jac:
             return dy, None
-        recipes = []
+        recipes: list[tuple] = []
         for i in range(self.D):
             j = fm.derivative_of(i)
             if j is not None:
@@ -319,7 +320,8 @@ class ShootingProblem(LeastSquaresProblem):
             stages = (st[0], st[1], st[1], st[2])
             acc = None
             accT: list = []
-            ky, kT = None, None
+            ky: Any = None
+            kT: Any = None
             for si, (c, w) in enumerate(weights):
                 ys = y if si == 0 else y + (c * h) * ky
                 Ts = T if (si == 0 or not need_jac) else [T[d] + (c * h) * kT[d] for d in range(D)]

@@ -17,7 +17,7 @@ import torch
 
 if TYPE_CHECKING:
     from ._presets import TrainingPreset
-    from ._problem import BatchedProblem
+    from ._problem import LeastSquaresProblem
 
 __all__ = ["TrainingLog", "train", "train_in_chunks", "train_with_preset", "chunk_log", "merge_logs",
            "torch_threads", "start_weights"]
@@ -202,7 +202,7 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
 
 
 def train(
-    problem: BatchedProblem,
+    problem: LeastSquaresProblem,
     theta0: torch.Tensor,
     *,
     adam_steps: int,

@@ -68,7 +68,7 @@ def _check_kind(how: str) -> str:
     return how
 
 
-def ensemble_rmse(values: Sequence[float], how: str = "rms") -> float:
+def ensemble_rmse(values: Sequence[float] | np.ndarray, how: str = "rms") -> float:
     """Combine per-realisation RMSEs of one noise level into one ensemble value.
 
     Parameters
@@ -97,7 +97,7 @@ def ensemble_rmse(values: Sequence[float], how: str = "rms") -> float:
     return float(np.sqrt(np.mean(v * v))) if how == "rms" else float(np.mean(v))
 
 
-def ensemble_by_level(levels: Sequence[float], values: Sequence[float], how: str = "rms"):
+def ensemble_by_level(levels: Sequence[float] | np.ndarray, values: Sequence[float] | np.ndarray, how: str = "rms"):
     """Group per-run values by noise level (SNR in dB or η) and combine each group.
 
     Parameters
@@ -148,8 +148,9 @@ def _fit_mask(eta: np.ndarray, rmse: np.ndarray, eta_min, eta_max, mask) -> np.n
     return keep
 
 
-def fit_slope_one(eta: Sequence[float], rmse: Sequence[float], *, eta_min: float | None = None,
-                  eta_max: float | None = None, mask: Sequence[bool] | None = None) -> float:
+def fit_slope_one(eta: Sequence[float] | np.ndarray, rmse: Sequence[float] | np.ndarray, *,
+                  eta_min: float | None = None, eta_max: float | None = None,
+                  mask: Sequence[bool] | None = None) -> float:
     """Amplitude ``A`` of ``RMSE = A η`` fitted with the slope fixed to 1 in log-log space.
 
     ``log A = mean_k(log RMSE_k − log η_k)`` (natural logs, unweighted) over the levels kept:
@@ -188,8 +189,9 @@ def fit_slope_one(eta: Sequence[float], rmse: Sequence[float], *, eta_min: float
     return float(np.exp(np.mean(np.log(r[keep]) - np.log(e[keep]))))
 
 
-def fit_bias(eta: Sequence[float], rmse: Sequence[float], *, eta_min: float | None = None,
-             eta_max: float | None = None, mask: Sequence[bool] | None = None) -> tuple[float, float]:
+def fit_bias(eta: Sequence[float] | np.ndarray, rmse: Sequence[float] | np.ndarray, *,
+             eta_min: float | None = None, eta_max: float | None = None,
+             mask: Sequence[bool] | None = None) -> tuple[float, float]:
     """Fit ``RMSE = sqrt(bias² + (A η)²)`` for methods with an error floor.
 
     As the stick-slip scripts do for Poly-CC and SINDy-CC: ``scipy.optimize.curve_fit`` in

@@ -51,7 +51,8 @@ def _empty(ax, text: str = "no method of this group in the run") -> None:
     ax.text(0.5, 0.5, text, transform=ax.transAxes, ha="center", va="center", color="0.4")
 
 
-def plot_rmse_vs_noise(series: Mapping[str, tuple[Sequence[float], Sequence[float]]], *, ax=None,
+def plot_rmse_vs_noise(series: Mapping[str, tuple[Sequence[float] | np.ndarray, Sequence[float] | np.ndarray]], *,
+                       ax=None,
                        fits: Mapping[str, float] | None = None,
                        bias_fits: Mapping[str, tuple[float, float]] | None = None,
                        ylabel: str = "RMSE", title: str | None = None):
@@ -98,7 +99,8 @@ def plot_rmse_vs_noise(series: Mapping[str, tuple[Sequence[float], Sequence[floa
     return ax
 
 
-def plot_tsep_vs_noise(series: Mapping[str, tuple[Sequence[float], Sequence[float]]], *, ax=None,
+def plot_tsep_vs_noise(series: Mapping[str, tuple[Sequence[float] | np.ndarray, Sequence[float] | np.ndarray]], *,
+                       ax=None,
                        lyapunov_time: float | None = None, horizon: float | None = 80.0, title: str | None = None):
     """Mean separation time per method against η, with the Lyapunov time as a red dashed line."""
     ax = _axes(ax)
@@ -128,8 +130,9 @@ def plot_tsep_vs_noise(series: Mapping[str, tuple[Sequence[float], Sequence[floa
     return ax
 
 
-def plot_forward(t: Sequence[float], x_true: Sequence[float], models: Mapping[str, tuple[Sequence[float],
-                 Sequence[float]]], *, ax=None, eps: float | None = 0.2, title: str | None = None):
+def plot_forward(t: Sequence[float] | np.ndarray, x_true: Sequence[float] | np.ndarray,
+                 models: Mapping[str, tuple[Sequence[float] | np.ndarray, Sequence[float] | np.ndarray]], *, ax=None,
+                 eps: float | None = 0.2, title: str | None = None):
     """The true x(t) (black) and each model's forward integration (``{label: (t, x)}``; a model
     that failed early is drawn up to where it stopped)."""
     ax = _axes(ax, (7.0, 3.0))
@@ -146,8 +149,10 @@ def plot_forward(t: Sequence[float], x_true: Sequence[float], models: Mapping[st
     return ax
 
 
-def plot_phase_space(x: Sequence[float], v: Sequence[float], *, ax=None, box: Mapping | None = None,
-                     others: Sequence[tuple[Sequence[float], Sequence[float]]] = (), title: str | None = None):
+def plot_phase_space(x: Sequence[float] | np.ndarray, v: Sequence[float] | np.ndarray, *, ax=None,
+                     box: Mapping | None = None,
+                     others: Sequence[tuple[Sequence[float] | np.ndarray, Sequence[float] | np.ndarray]] = (),
+                     title: str | None = None):
     """Phase portrait: the training trajectory (or validation trajectories in ``others``), with
     the training box shaded grey as in the paper's Fig. 7."""
     ax = _axes(ax, (4.5, 4.0))

@@ -391,6 +391,7 @@ def _prepare(curve, evaluation, jump, margin, table_points, table_rtol, max_tabl
                           "use evaluation='exact'")
     if not want_table:
         return PreparedCurve(exact, exact_slope, height, width, "exact")
+    assert dom is not None  # a table is wanted only for a curve with a domain
     lo, hi = float(dom[0]), float(dom[1])
     pad = margin * (hi - lo) if hi > lo else 1.0
     lo, hi = lo - pad, hi + pad

@@ -73,11 +73,12 @@ def estimate_initial_state(model, traj, *, hold: str = "linear", substeps: int =
 
 
 def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_col="F", sample_rate=None,
-                 hold=None, substeps=None, out_dir=None) -> list[str]:
+                 hold=None, substeps=None, out_dir=None) -> tuple[list[str], list[str]]:
     """``charcurves validate``: free runs of a saved model on row spans of a CSV record.
 
     The initial state of each span is estimated from its first 128 samples
-    (:func:`estimate_initial_state`); the RMSE is over every sample of the span.
+    (:func:`estimate_initial_state`); the RMSE is over every sample of the span. Returns the report
+    lines and the spans (``"start:stop"``) whose free run failed.
     """
     import os
 
@@ -110,8 +111,8 @@ def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_co
     lines = [f"free run of {model_dir} ({model.method}; hold {hold}, {substeps} RK4 steps per sample; initial "
              "state fitted to the first 128 samples)"]
     for r in results:
-        rel = "" if r["rmse_relative_to_std"] is None else f" ({100 * r['rmse_relative_to_std']:.3g} % of std x)"
-        lines.append(f"  rows {r['rows'][0]}:{r['rows'][1]}: {r['status']}, RMSE {r['rmse']:.5g}{rel}, "
+        pct = "" if r["rmse_relative_to_std"] is None else f" ({100 * r['rmse_relative_to_std']:.3g} % of std x)"
+        lines.append(f"  rows {r['rows'][0]}:{r['rows'][1]}: {r['status']}, RMSE {r['rmse']:.5g}{pct}, "
                      f"{r['seconds']:.2f} s")
     if out_dir is not None:
         from ..io import atomic_write_bytes, json_bytes, non_finite_paths

@@ -26,6 +26,7 @@ An explicit ``sr_options["operators"]`` overrides all this (whole-curve SR with 
 from __future__ import annotations
 
 import math
+from typing import Any, cast
 
 import numpy as np
 
@@ -140,8 +141,9 @@ def _neural_jump(curve: FittedCurve, z: np.ndarray):
     if spec is None or not getattr(spec, "jump", False):
         return None
     sl = spec.slices()
-    mu_m = curve.theta[:, sl["jump_height"]].reshape(-1) * curve.out_scale
-    eps_m = np.exp(jump_log_eps(curve.theta[:, sl["jump_log_eps"]].reshape(-1))) * curve.in_scale
+    neural: Any = curve  # a neural curve (theta, in_scale, out_scale): it has a spec with a jump
+    mu_m = neural.theta[:, sl["jump_height"]].reshape(-1) * neural.out_scale
+    eps_m = np.exp(jump_log_eps(neural.theta[:, sl["jump_log_eps"]].reshape(-1))) * neural.in_scale
     with np.errstate(over="ignore", divide="ignore"):
         vals = np.mean(mu_m[:, None] * np.tanh(z[None, :] / eps_m[:, None]), axis=0)
     # k = 1/eps, lowered to where the step is still saturated (|k z| >= 20) at every grid point:
@@ -163,7 +165,8 @@ def _refit_with_jump(smooth_expr, k: float, z: np.ndarray, y: np.ndarray):
     zs = sp.Symbol("z")
     step = sp.tanh(sp.Float(k, 15) * zs)
     terms = [b for c, b in split_terms(sp.expand(smooth_expr)) if c != 0] + [step]
-    A = np.column_stack([eval_expression(b, [zs], z[:, None]) for b in terms])
+    # finite on z: the smooth terms were fitted there (polynomial operators) and tanh is bounded
+    A = np.column_stack([cast(np.ndarray, eval_expression(b, [zs], z[:, None])) for b in terms])
     coef, *_ = np.linalg.lstsq(A, y, rcond=None)
     expr = sp.Add(*[sp.Float(float(c), 15) * b for c, b in zip(coef, terms)])
     return expr, float(np.mean((A @ coef - y) ** 2))

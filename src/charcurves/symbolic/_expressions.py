@@ -64,7 +64,7 @@ def canonical(expr):
     return out
 
 
-def split_terms(expr):
+def split_terms(expr) -> list[tuple[float, Any]]:
     """``sum c_j b_j`` -> [(c_j, b_j)] with numeric c_j (b_j = 1 for the constant)."""
     import sympy as sp
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 
@@ -119,7 +119,7 @@ def candidates_from(exprs, symbols, X, y) -> list[Candidate]:
     for raw in exprs:
         expr = canonical(raw)
         terms = split_terms(expr)
-        bases = []
+        bases: Any = []  # the basis expressions; None when one of them is not finite on X
         for c, b in terms:
             if b not in basis_cache:
                 basis_cache[b] = eval_expression(b, symbols, X)
@@ -129,7 +129,7 @@ def candidates_from(exprs, symbols, X, y) -> list[Candidate]:
             bases.append(b)
         if not bases:
             continue
-        B = np.column_stack([basis_cache[b] for b in bases])
+        B = np.column_stack([cast(np.ndarray, basis_cache[b]) for b in bases])  # no None: checked above
         active = list(range(len(bases)))
         # greedy backward elimination: the outer coefficients are linear, so each sub-model is a
         # least-squares solve on fixed columns (microseconds), not a new search
@@ -150,15 +150,16 @@ def candidates_from(exprs, symbols, X, y) -> list[Candidate]:
                 m2 = float(np.mean((A2 @ c2 - y) ** 2))
                 if m2 < best_mse:
                     best_j, best_mse = j, m2
+            assert best_j is not None  # y and the columns are finite, so are the sub-models' errors
             active.remove(best_j)
     out = list(pool.values())
     # constants inside functions (tanh(k z)) come from the single-precision search on a subsample;
     # unpolished, a slightly wrong k can make a nested variant look better than the plain form
-    for c in out:
-        if has_inner_constants(c.expression):
-            expr, mse = polish_constants(c.expression, symbols, X, y, max_nfev=60)
-            if mse < c.mse:
-                c.expression, c.mse = expr, mse
+    for cand in out:
+        if has_inner_constants(cand.expression):
+            expr, mse = polish_constants(cand.expression, symbols, X, y, max_nfev=60)
+            if mse < cand.mse:
+                cand.expression, cand.mse = expr, mse
     return out
 
 

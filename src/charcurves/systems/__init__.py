@@ -23,15 +23,16 @@ __all__ = ["BenchmarkSystem", "Duffing", "StickSlip", "VanDerPolDamping", "First
 
 from ._families import FirstOrderSystem, TwoDOF, VanDerPolDamping, corrupt_forces  # noqa: E402
 
-_REGISTRY: dict[str, type] = {"duffing": Duffing, "stick-slip": StickSlip, "van-der-pol": VanDerPolDamping,
-                              "first-order": FirstOrderSystem, "two-dof": TwoDOF}
+_REGISTRY: dict[str, type[BenchmarkSystem] | type[TwoDOF]] = {
+    "duffing": Duffing, "stick-slip": StickSlip, "van-der-pol": VanDerPolDamping, "first-order": FirstOrderSystem,
+    "two-dof": TwoDOF}
 #: Every name accepted by :func:`get_system`: the paper's separable benchmarks (duffing,
 #: stick-slip; "stick_slip" is accepted too) and one system per other family (van-der-pol:
 #: position-damping, first-order, two-dof). ``get_system(name).family`` tells which.
 SYSTEM_NAMES = tuple(_REGISTRY)
 
 
-def get_system(name: str, variant: str = "paper", **overrides: Any) -> BenchmarkSystem:
+def get_system(name: str, variant: str = "paper", **overrides: Any) -> BenchmarkSystem | TwoDOF:
     """Build a benchmark system by name.
 
     Parameters
@@ -46,7 +47,8 @@ def get_system(name: str, variant: str = "paper", **overrides: Any) -> Benchmark
 
     Returns
     -------
-    BenchmarkSystem
+    BenchmarkSystem or TwoDOF
+        A :class:`TwoDOF` for ``"two-dof"`` (two degrees of freedom), a BenchmarkSystem otherwise.
 
     Raises
     ------

@@ -37,7 +37,7 @@ def sample_times(t_end: Any = None, n_points: Any = None, t_eval: Any = None) ->
         t_end = _real("t_end", t_end, positive=True)
         if isinstance(n_points, bool) or not isinstance(n_points, numbers.Integral) or n_points < 2:
             raise ConfigError(f"n_points must be an integer >= 2, got {n_points!r}")
-        if n_points > MAX_SIMULATE_POINTS:
+        if n_points > MAX_SIMULATE_POINTS:  # type: ignore[operator]  # typeshed: numbers.Integral vs int
             raise ConfigError(f"n_points (--n-points) {n_points} is more than the {MAX_SIMULATE_POINTS:,} samples a "
                               f"simulation returns (a CSV of about 0.25 GB); give at most {MAX_SIMULATE_POINTS}")
         if t_end > MAX_SIMULATE_SPAN:
@@ -201,11 +201,13 @@ class BenchmarkSystem(abc.ABC):
             ``x``, ``v`` from the solver, ``a`` from the equation of motion at the samples (not
             differentiated), clean ``F``.
         """
-        changes = {k: val for k, val in {"x0": x0, "v0": v0, "A": A, "Omega": Omega}.items() if val is not None}
+        changes: dict[str, Any] = {k: val for k, val in {"x0": x0, "v0": v0, "A": A, "Omega": Omega}.items()
+                                   if val is not None}
         system = dataclasses.replace(self, **changes) if changes else self
         times = sample_times(t_end, n_points, t_eval)
         rtol = system.rtol if rtol is None else _real("rtol", rtol, positive=True)
         atol = system.atol if atol is None else _real("atol", atol, positive=True)
+        assert rtol is not None and atol is not None  # __post_init__ sets the system's tolerances
         x, v, a = system._integrate(times, rtol, atol)
         if not (np.isfinite(x).all() and np.isfinite(v).all()):
             raise SimulationError(f"{self.name} simulation produced non-finite values; check the parameters")

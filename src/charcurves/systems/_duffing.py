@@ -63,6 +63,7 @@ class Duffing(BenchmarkSystem):
 
     def _integrate(self, t_eval: np.ndarray, rtol: float, atol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         A, Om, d, al, be = self.A, self.Omega, self.delta, self.alpha, self.beta
+        assert A is not None and Om is not None and d is not None and al is not None and be is not None
 
         # Plain floats: LSODA calls this once per stage, numpy scalars would be ~5x slower.
         def rhs(t: float, y: np.ndarray) -> list[float]:

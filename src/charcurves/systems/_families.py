@@ -119,6 +119,7 @@ class FirstOrderSystem(BenchmarkSystem):
         return self.A * np.cos(self.Omega * t) + self.B * np.cos(self.Omega2 * t)
 
     def _validate(self) -> None:
+        assert self.r0 is not None and self.r2 is not None  # __post_init__ filled the fields from the variant
         if self.r0 <= 0 or self.r2 < 0:
             raise ConfigError(f"f2(x) = r0 + r2 x^2 must stay positive: need r0 > 0 and r2 >= 0, got r0={self.r0}, "
                               f"r2={self.r2}")
@@ -141,6 +142,8 @@ class FirstOrderSystem(BenchmarkSystem):
         t = np.asarray(t, dtype=float)
         x = np.asarray(x, dtype=float)
         v = np.asarray(v, dtype=float)
+        assert self.A is not None and self.Omega is not None and self.B is not None and self.Omega2 is not None
+        assert self.k is not None and self.c is not None and self.r2 is not None
         dF = -self.A * self.Omega * np.sin(self.Omega * t) - self.B * self.Omega2 * np.sin(self.Omega2 * t)
         df1 = self.k + 3 * self.c * x**2
         df2 = 2 * self.r2 * x

@@ -68,6 +68,7 @@ class StickSlip(BenchmarkSystem):
             raise ConfigError(
                 f"unknown friction law {self.friction!r}; choose one of {', '.join(map(repr, FRICTION_LAWS))}"
             )
+        assert self.mu_N is not None  # __post_init__ filled the fields from the variant
         if self.mu_N < 0:
             raise ConfigError(f"mu_N (the friction force) must be >= 0, got {self.mu_N}")
         scale = self.tanh_scale
@@ -79,6 +80,7 @@ class StickSlip(BenchmarkSystem):
     def parameters(self) -> dict[str, float]:
         params = super().parameters()
         if self.friction == "tanh":
+            assert self.tanh_scale is not None
             params["tanh_scale"] = float(self.tanh_scale)
         return params
 
@@ -157,6 +159,7 @@ class StickSlip(BenchmarkSystem):
         forcing those crossings have a closed form, which avoids root finding on a step grid
         (that could miss short excursions) and integrating a motionless phase.
         """
+        assert self.A is not None and self.Omega is not None and self.k is not None and self.mu_N is not None
         A, W, kx, muN = self.A, abs(self.Omega), self.k * x_s, self.mu_N
         if A == 0.0 or W == 0.0:
             return None  # constant force: stuck now means stuck forever

@@ -48,7 +48,8 @@ class Signal:
         used = sorted(expr.free_symbols, key=lambda s: s.name)
         self._names = [s.name for s in used]
         self._f = sp.lambdify(used, expr, modules="torch") if used else None
-        self._grads = []
+        # (layout index, constant derivative or None, compiled derivative or None, its symbol names or None)
+        self._grads: list[tuple] = []
         for i, name in enumerate(layout):
             d = sp.diff(expr, sp.Symbol(name, real=True))
             if d == 0:
@@ -68,6 +69,7 @@ class Signal:
 
         if self._const is not None:
             return torch.full_like(like, self._const)
+        assert self._f is not None  # not a constant: compiled in __init__
         out = self._f(*[vals[n] for n in self._names])
         return torch.broadcast_to(torch.as_tensor(out, dtype=like.dtype), like.shape)
 

@@ -140,7 +140,7 @@ def sticking_mask(traj, *, rel_tol: float | None = None, min_run: int = 3) -> np
     return mask
 
 
-def read_record(path, *, family: str = "separable", equation: str | None = None, time_col: str = "t",
+def read_record(path, *, family: str = "separable", equation: str | None = None, time_col: str | None = "t",
                 x_col: str = "x", force_col: str = "F", sample_rate=None, rows=None):
     """Read a CSV record in the shape the template needs: a Trajectory (t,x,F[,v,a]) or, for
     multi-DOF templates, a MultiTrajectory (t,x1,x2,F1,F2[,v1,a1,v2,a2])."""

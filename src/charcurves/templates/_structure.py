@@ -130,11 +130,11 @@ class EquationTemplate:
         for a in arguments.values():
             syms |= {s.name for s in a.free_symbols}
         self.symbols = tuple(sorted(syms))
-        self.states = tuple(sorted({(DERIV.match(s).group(1) if DERIV.match(s) else s)
+        self.states = tuple(sorted({(dm.group(1) if (dm := DERIV.match(s)) else s)
                                     for s in syms if STATE.match(s) or DERIV.match(s)}))
         self.forces = tuple(sorted(s for s in syms if FORCE.match(s)))
-        self.order = max([int(DERIV.match(s).group(2)) for s in syms if DERIV.match(s)] or [0])
-        self._rng_points = None
+        self.order = max([int(dm.group(2)) for s in syms if (dm := DERIV.match(s))] or [0])
+        self._rng_points: dict[str, np.ndarray] | None = None
         self._check_pairs()
         self.anchors = self._choose_anchors(gauge, {n: False for n in names})
         #: the gauge as asked for (None: the family's default anchors); ``anchors`` is what it resolved to
