@@ -1,6 +1,7 @@
-"""Figures and reports."""
+"""Figures and reports: the benchmark study's figures, the Markdown/HTML :class:`Report`, and the
+one-page report of a single fit (``charcurves report``)."""
 
-from ._figures import plot_curves as plot_curves
+from ..fitting import plot_curves as plot_curves
 from ._html import Report as Report
 from ._study import plot_forward as plot_forward
 from ._study import plot_performance as plot_performance
