@@ -45,15 +45,17 @@ def load_fit(path: str | os.PathLike):
     """The model and the ``result.json`` of a fit: ``(model, result or None)``.
 
     ``path`` is the folder ``charcurves fit --out`` wrote (with ``model/`` and ``result.json``) or a
-    model folder itself (``model.json``; a ``result.json`` beside it in the parent is read too). The
+    model folder itself (``model.json``; when it is named ``model``, the ``result.json`` beside it is read too). The
     bands stored in ``result.json`` are attached to the model so that its figure draws them.
     """
     p = os.fspath(path)
     if not os.path.isdir(p):
         what = "does not exist" if not os.path.exists(p) else "is not a directory"
         raise ModelFileError(f"{p!r} {what}; give the folder 'charcurves fit --out' wrote, or its model/ folder")
-    if os.path.isfile(os.path.join(p, "model.json")):
-        model_dir, result_path = p, os.path.join(os.path.dirname(os.path.abspath(p)), "result.json")
+    if os.path.isfile(os.path.join(p, "model.json")):  # fit writes result.json beside a folder named model/
+        parent = os.path.dirname(os.path.abspath(p))
+        model_dir = p
+        result_path = os.path.join(parent, "result.json") if os.path.basename(os.path.abspath(p)) == "model" else ""
     elif os.path.isdir(os.path.join(p, "model")):
         model_dir, result_path = os.path.join(p, "model"), os.path.join(p, "result.json")
     else:
