@@ -114,7 +114,13 @@ def test_fit_report_is_one_self_contained_page_with_the_fit(fitted):
     assert page.row("charcurves") == cc.__version__ and page.row("numpy") == np.__version__
     assert "None about the record." in text
     assert "no output-error refinement" in text.lower()
-    assert "report.html" in (out / "summary.txt").read_text()
+    summary = (out / "summary.txt").read_text()
+    assert "report.html" in summary
+    # the printed closed forms have 4 significant digits (issue 24, item 5); result.json keeps all of them
+    lo, hi = result["curves"]["f1"]["domain"]
+    assert f"  f1(x') on [{lo:.4g}, {hi:.4g}] = {c1:.4g}*x'; RMSE vs truth" in summary
+    assert result["curves"]["f1"]["expression"].split("*")[0] not in summary
+    assert len(result["curves"]["f1"]["expression"].split("*")[0]) > 10
 
 
 def test_report_command_rebuilds_the_same_page_from_the_saved_fit(fitted, tmp_path, capsys):
