@@ -54,7 +54,7 @@ def display_expression(expr, domain: Sequence[float] | None = None, *, digits: i
         raise ValueError(f"digits must be a positive integer, got {digits!r}")
     expr = sp.sympify(expr)
     symbols = sorted(expr.free_symbols, key=lambda s: s.name)
-    terms = list(sp.Add.make_args(sp.expand(expr)))
+    terms = list(sp.Add.make_args(expr))  # as found (an SR formula is not expanded)
     if domain is not None and len(symbols) == 1 and len(terms) > 1:
         z = symbols[0]
         grid = np.linspace(float(domain[0]), float(domain[1]), 257)
@@ -97,7 +97,7 @@ def format_closed_form(expr, domain: Sequence[float] | None = None, *, digits: i
 
 
 def equation_text(model, *, digits: int = DISPLAY_DIGITS) -> str | None:
-    """The identified equation with the closed forms written in (``x'' + 0.3*x' + x**3 - x = F``),
+    """The identified equation with the closed forms written in (``x'' + 0.3*x' + (x**3 - x) = F``),
     numbers to ``digits`` significant digits; several equations joined by ``; ``. None when a curve
     has no closed form (a neural curve not distilled).
 
