@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(argv) -> int:
-    from ._commands import cmd_benchmark, cmd_select, cmd_simulate, cmd_validate
+    from ._commands import cmd_benchmark, cmd_report, cmd_select, cmd_simulate, cmd_validate
     from ._fit import cmd_demo, cmd_fit
     from ._parser import build_parser
 
@@ -62,5 +62,5 @@ def _run(argv) -> int:
         return 2
     check_seed(getattr(args, "seed", None))
     handler = {"simulate": cmd_simulate, "fit": cmd_fit, "demo": cmd_demo, "validate": cmd_validate,
-               "benchmark": cmd_benchmark, "select": cmd_select}[args.command]
+               "benchmark": cmd_benchmark, "select": cmd_select, "report": cmd_report}[args.command]
     return handler(args)

@@ -1,4 +1,4 @@
-"""``charcurves simulate``, ``validate``, ``select`` and ``benchmark``."""
+"""``charcurves simulate``, ``validate``, ``select``, ``benchmark`` and ``report``."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import sys
 
 from ._common import UsageError, check_seed, make_out_dir, say
 
-__all__ = ["cmd_simulate", "cmd_validate", "cmd_select", "cmd_benchmark"]
+__all__ = ["cmd_simulate", "cmd_validate", "cmd_select", "cmd_benchmark", "cmd_report"]
 
 
 def cmd_simulate(a) -> int:
@@ -31,6 +31,30 @@ def cmd_simulate(a) -> int:
     traj.to_csv(a.out)
     say(f"wrote {a.out}: {a.system} ({a.variant}), {traj.n_samples} samples"
         + (f", SNR {a.snr:g} dB on {a.noise_on}" if a.snr is not None else ", no noise"))
+    return 0
+
+
+def cmd_report(a) -> int:
+    """The one-page HTML report of a saved fit (default: report.html in the fit folder)."""
+    from ..report import write_fit_report
+
+    truth = None
+    if a.truth:
+        from ..systems import get_system
+
+        truth = get_system(a.truth, a.truth_variant).true_curves()
+    out = a.out
+    if out is None:
+        folder = os.path.abspath(a.model)
+        if os.path.isfile(os.path.join(folder, "model.json")):  # a model/ folder: the report goes beside it
+            folder = os.path.dirname(folder)
+        out = os.path.join(folder, "report.html")
+    elif os.path.isdir(out):
+        raise UsageError(f"--out {out!r} is a directory; give the HTML file to write, e.g. {os.path.join(out, 'report.html')}")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    say(f"wrote {write_fit_report(a.model, out, truth=truth)}")
     return 0
 
 

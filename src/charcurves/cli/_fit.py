@@ -48,7 +48,7 @@ def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_g
                   gain_on="force", preset="default", seed=0, derivatives="auto", jump="auto", basis=None,
                   keep_sticking=False, truth=None, threads=None, device="cpu", figure=True, quiet=False, source=None,
                   sr_options=None, refine=None, refine_options=None, bands=None, bands_kind="bootstrap",
-                  bands_level=0.95, equation=None, warnings=(), objective=None):
+                  bands_level=0.95, equation=None, warnings=(), objective=None, report=False):
     from ..fitting import CharacteristicCurves
 
     est = CharacteristicCurves(
@@ -87,7 +87,7 @@ def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_g
         make_out_dir(out_dir)
         write_results(model, out_dir, method=model.method, family=family, free_gain=free_gain, truth=truth,
                       figure=figure, quiet=quiet, source=source, elapsed=elapsed, warnings=list(warnings),
-                      record=traj)
+                      record=traj, report=report)
     model.info["interrupted_while_writing"] = late_interrupt[0]
     return model
 
@@ -115,10 +115,10 @@ def _curves_figure(model, truth, record, title):
 
 
 def write_results(model, out_dir, *, method, family, free_gain, truth, figure, quiet, source, elapsed, warnings=(),
-                  record=None):
+                  record=None, report=False):
     """result.json (what the inputs and the seed determine, bit-identical on reruns; standard JSON:
     non-finite numbers as null, listed under ``non_finite``), timing.json (wall-clock times), the
-    model, curves.png and summary.txt. ``warnings`` (one line each, about the record) go to stderr
+    model, curves.png, summary.txt and (``report``) report.html. ``warnings`` (one line each, about the record) go to stderr
     and to result.json ``warnings`` (an empty list when there are none)."""
     from ..io import atomic_write_bytes, json_bytes, non_finite_paths
     from ..metrics import curve_errors
@@ -150,7 +150,16 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
         import matplotlib.pyplot as plt
 
         plt.close(fig)
+    if report:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        from ..report import fit_report
+
+        page = fit_report(model, result=result, truth=truth).to_html()
+        atomic_write_bytes(os.path.join(out_dir, "report.html"), page.encode("utf-8"))
     from .. import __version__
+    from ..fitting import format_closed_form
 
     lines = [f"charcurves {__version__} — {method} on the {family} family: {model.template.equation}",
              f"fit time {elapsed:.2f} s, data loss {model.loss:.4g}, gain {model.gain:.6g}"
@@ -162,8 +171,12 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
         if "jump_height" in comp:
             extra = f"; jump at 0: height {comp['jump_height']:.4g}, width {comp['jump_width']:.3g}"
         lines.append(f"  {name}({c.argument}) on [{c.domain[0]:.4g}, {c.domain[1]:.4g}]"
-                     + (f" = {expr}" if expr is not None else f" ({c.kind} curve)") + extra
+                     + (f" = {format_closed_form(expr, c.domain, argument=c.argument)}" if expr is not None
+                        else f" ({c.kind} curve)") + extra
                      + (f"; RMSE vs truth {errors[name]:.3e}" if errors and name in errors else ""))
+    if any(c.expression() is not None for c in model.curves.values()):
+        lines.append("  (closed forms to 4 significant digits, terms below that precision left out; result.json "
+                     "and model/ keep every digit)")
     for name, value in result.get("scalars", {}).items():  # unknown scalars of user-written templates
         lines.append(f"  {name} = {value:.6g}")
     if "output_error" in model.info:
@@ -178,7 +191,7 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
     elif result["interrupted"]:
         lines.append("interrupted: these are the best curves reached before Ctrl-C, not a finished fit")
     lines.append(f"wrote {os.path.join(out_dir, 'result.json')}" + (", curves.png" if figure else "")
-                 + ", timing.json, model/")
+                 + (", report.html" if report else "") + ", timing.json, model/")
     text = "\n".join(lines)
     atomic_write_bytes(os.path.join(out_dir, "summary.txt"), (text + "\n").encode())
     say(text, quiet)
@@ -222,7 +235,7 @@ def cmd_fit(a) -> int:
                           truth=truth, threads=a.threads, device=a.device, figure=not a.no_figure, quiet=a.quiet,
                           source=source_path(a.csv, a.out), refine=a.refine, refine_options=refine_options,
                           bands=a.bands, bands_kind=a.bands_kind, bands_level=a.bands_level, equation=a.equation,
-                          warnings=traj.quality_warnings(), objective=a.objective)
+                          warnings=traj.quality_warnings(), objective=a.objective, report=a.report)
     return interrupted_exit(model, a.out)
 
 

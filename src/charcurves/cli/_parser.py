@@ -110,6 +110,18 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     f.add_argument("--bands-kind", choices=["bootstrap", "seeds"], default="bootstrap",
                    help="ensemble of --bands: wild residual bootstrap of the forcing (default) or training seeds")
     f.add_argument("--bands-level", type=float, default=0.95, help="coverage level of --bands (default 0.95)")
+    f.add_argument("--report", action="store_true",
+                   help="also write report.html: one self-contained page with the equation, curves, diagnostics, "
+                        "settings and versions (as 'charcurves report')")
+
+    r = sub.add_parser("report", help="write the one-page HTML report of a fit (equation, curves, diagnostics, "
+                                      "settings, versions)")
+    r.add_argument("model", help="the folder 'fit --out' wrote (or its model/ folder)")
+    r.add_argument("--out", default=None,
+                   help="HTML file to write (default: report.html in the fit folder)")
+    r.add_argument("--truth", default=None,
+                   help=f"benchmark system ({', '.join(SYSTEM_NAMES)}) whose true curves to draw and compare with")
+    r.add_argument("--truth-variant", default="paper", help="variant of --truth (default paper)")
 
     v = sub.add_parser("validate", help="free-run a saved model on a record; RMSE and a figure")
     v.add_argument("model", help="model directory (the model/ that fit writes)")

@@ -7,6 +7,7 @@ CharacteristicCurves(template=..., differentiator=..., objective=..., post_sr=..
 fit(record, method="nn-cc+sym", ...)                       shortcut
 EquationError(), OutputError(...)                          objectives
 FittedModel, load_model                                    fitted models and their files
+plot_curves, plot_model, model_html, curve_lines, ...      views of a fitted model (figures, text, HTML)
 METHODS, PRESETS, TrainingPreset                           method and training presets
 fit_ensemble(s), bootstrap_records, detect_symmetry, parity_tests   ensembles and parity tests
 """
@@ -42,6 +43,10 @@ from ._output_error import output_error_fit as output_error_fit
 from ._output_error import refine_output_error as refine_output_error
 from ._output_error import summary_lines as summary_lines
 from ._pipeline import raw_fit as raw_fit
+from ._plots import figure_png as figure_png
+from ._plots import plot_curves as plot_curves
+from ._plots import plot_model as plot_model
+from ._plots import resolve_truth as resolve_truth
 from ._post_sr import DATA_LOSS_TOLERANCE as DATA_LOSS_TOLERANCE
 from ._post_sr import distill_model as distill_model
 from ._presets import PRESETS as PRESETS
@@ -56,3 +61,14 @@ from ._symmetry import detect_symmetry as detect_symmetry
 from ._symmetry import fit_many_auto as fit_many_auto
 from ._symmetry import parity_tests as parity_tests
 from ._symmetry import resolved_estimator as resolved_estimator
+from ._views import DISPLAY_DIGITS as DISPLAY_DIGITS
+from ._views import curve_lines as curve_lines
+from ._views import curve_scale as curve_scale
+from ._views import display_expression as display_expression
+from ._views import display_number as display_number
+from ._views import equation_text as equation_text
+from ._views import fit_statistics as fit_statistics
+from ._views import format_closed_form as format_closed_form
+from ._views import model_html as model_html
+from ._views import output_error_rows as output_error_rows
+from ._views import settings_rows as settings_rows

@@ -101,30 +101,73 @@ class FittedModel:
     def is_symbolic(self) -> bool:
         return all(c.expression() is not None for c in self.curves.values())
 
-    def to_sympy(self):
-        """The identified equation as a sympy ``Eq`` (curves must be symbolic)."""
+    def _expressions(self, digits: int | None) -> dict:
+        """Each curve's closed form in ``z`` (rounded for display when ``digits`` is given); a clear
+        error naming the fix when a curve has none."""
+        missing = [n for n, c in self.curves.items() if c.expression() is None]
+        if missing:
+            from ._methods import METHODS
+
+            kinds = ", ".join(f"{n} ({self.curves[n].kind})" for n in missing)
+            distilled = f"{self.method}+post-sr"
+            how = f"--method {distilled}" if distilled in METHODS else "a +post-sr method"
+            raise ConfigError(
+                f"curves {kinds} have no closed form; distil them first: fit with post_sr=True or {how}, or "
+                "run charcurves.fitting.distill_model(model), or fit a basis method (parametric, poly-cc, sindy-cc)")
+        if digits is None:
+            return {n: c.expression() for n, c in self.curves.items()}
+        from ._views import display_expression
+
+        return {n: display_expression(c.expression(), c.domain, digits=digits) for n, c in self.curves.items()}
+
+    def to_sympy(self, *, curves: bool = False, digits: int | None = None):
+        """The identified equation as a sympy ``Eq`` (a list of them for several equations), or with
+        ``curves=True`` a dict of curve name -> closed form in ``z``.
+
+        Every curve must have a closed form (a basis method, SR-CC, or a +post-sr method); a neural
+        curve raises :class:`~charcurves.ConfigError` naming the fix. ``digits`` rounds the numbers
+        to that many significant digits and drops the terms that are zero at that precision over each
+        curve's training range (for display; the model keeps every digit).
+
+        Examples
+        --------
+        >>> import charcurves as cc
+        >>> from charcurves.systems import get_system
+        >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
+        >>> model.to_sympy(curves=True, digits=4)["f1"]
+        0.3*z
+        """
         import sympy as sp
 
-        if not self.is_symbolic:
-            missing = [n for n, c in self.curves.items() if c.expression() is None]
-            raise ConfigError(
-                f"curves {missing} are not symbolic; distil them first (a method with +post-sr) "
-                "or use a basis method"
-            )
+        exprs = self._expressions(digits)
+        if curves:
+            return exprs
+
+        if digits is None:
+            def num(value: float, constant: bool = False):
+                return sp.Float(value)
+        else:  # rounded; a constant below the precision of the curves' values is dropped
+            from ._views import curve_scale, display_number
+
+            scale = curve_scale(self)
+
+            def num(value: float, constant: bool = False):  # scalars multiply signals: never dropped
+                return display_number(value, scale if constant else 0.0, digits)
+
         if self.template.is_general:  # one Eq, or a list of Eq for several equations
-            return self._general_sympy()
+            return self._general_sympy(exprs, num)
         t = sp.Symbol("t")
         x = sp.Function("x")(t)
         F = sp.Function("F")(t)
         z = sp.Symbol("z")
         lhs = sp.diff(x, t, 2)
-        lhs += self.curves["f1"].expression().subs(z, sp.diff(x, t))
-        lhs += self.curves["f2"].expression().subs(z, x)
+        lhs += exprs["f1"].subs(z, sp.diff(x, t))
+        lhs += exprs["f2"].subs(z, x)
         if self.offset:
-            lhs += sp.Float(self.offset)
-        return sp.Eq(lhs, sp.Float(self.gain) * F if self.gain != 1 else F)
+            lhs += num(self.offset, True)
+        return sp.Eq(lhs, num(self.gain) * F if self.gain != 1 else F)
 
-    def _general_sympy(self):
+    def _general_sympy(self, exprs: dict, num):
         import sympy as sp
 
         template = self.template
@@ -134,22 +177,46 @@ class FittedModel:
         for e, eq in enumerate(template.equations):
             lhs = eq.known
             for name, m in eq.curves.items():
-                lhs = lhs + m * self.curves[name].expression().subs(z, template.argument_exprs[name])
+                lhs = lhs + m * exprs[name].subs(z, template.argument_exprs[name])
             for s, sig in eq.scalars.items():
-                lhs = lhs + sp.Float(sc.get(s, 0.0)) * sig
+                lhs = lhs + num(sc.get(s, 0.0)) * sig
             off = self.offset if e == 0 else sc.get(f"b{e + 1}", 0.0)
             if off:
-                lhs = lhs + sp.Float(off)
-            rhs = eq.input if self.gain == 1 else sp.Float(self.gain) * eq.input
+                lhs = lhs + num(off, True)
+            rhs = eq.input if self.gain == 1 else num(self.gain) * eq.input
             eq_ = sp.Eq(lhs, rhs)
             # data symbols as written (x', x1'') rather than the parser's internal names
             out.append(eq_.subs({s: sp.Symbol(display(s.name), real=True) for s in eq_.free_symbols}))
         return out[0] if len(out) == 1 else out
 
-    def to_latex(self) -> str:
+    def to_latex(self, digits: int | None = 4) -> str:
+        """The equation with the closed forms written in, as LaTeX (several equations joined by a LaTeX line break).
+
+        Numbers are printed to ``digits`` significant digits and terms that are zero at that
+        precision are dropped (None: every stored digit). Needs closed forms, as :meth:`to_sympy`.
+        """
         import sympy as sp
 
-        return sp.latex(self.to_sympy())
+        eq = self.to_sympy(digits=digits)
+        return " \\\\ ".join(sp.latex(e) for e in eq) if isinstance(eq, list) else sp.latex(eq)
+
+    # ------------------------------------------------------------------ notebook views
+    def plot(self, ax=None, truth=None, **kwargs):
+        """Draw the curves (training range shaded, truth dashed, bands filled) and return the axes.
+
+        ``ax``: None (a new figure, one panel per curve), one Axes per curve, or a single Axes for
+        all of them; ``truth``: name -> callable or a benchmark system's name (``"duffing"``). Other
+        keywords (``bands``, ``label``, ``margin``) as :func:`charcurves.fitting.plot_model`.
+        """
+        from ._plots import plot_model
+
+        return plot_model(self, ax, truth, **kwargs)
+
+    def _repr_html_(self) -> str:
+        """A notebook's view: the curves (closed forms to 4 digits), fit statistics, a small figure."""
+        from ._views import model_html
+
+        return model_html(self)
 
     # ------------------------------------------------------------------ the CLI's result.json
     def result_dict(self, n_grid: int = 1000) -> dict[str, Any]:

@@ -174,7 +174,7 @@ class Report:
     # ------------------------------------------------------------------ files
     def write(self, out_dir: str | os.PathLike, stem: str = "report") -> tuple[str, str]:
         """Write ``{stem}.md`` (+ ``figures/*.png``) and ``{stem}.html`` atomically; returns both paths."""
-        from ..io._csv import atomic_write_bytes
+        from ..io import atomic_write_bytes
 
         out_dir = os.fspath(out_dir)
         fig_dir = os.path.join(out_dir, "figures")
