@@ -34,6 +34,16 @@ METHODS = ("nn-cc+sym", "nn-cc", "poly-cc", "sindy-cc+sym")
 DIFFERENTIATORS = ("spectral", "kalman", "savgol")
 
 
+def _guarded(fn, *args, **kw):
+    """``fn(*args, **kw)`` -> (result, seconds), or (the exception, seconds) when it fails."""
+    t0 = time.perf_counter()
+    try:
+        out = fn(*args, **kw)
+    except Exception as exc:  # noqa: BLE001 - recorded in the results, never hidden
+        return exc, time.perf_counter() - t0
+    return out, time.perf_counter() - t0
+
+
 def _fit(record, method, objective, differentiator, seed):
     import charcurves as cc
 
@@ -64,6 +74,10 @@ def run_record(job):
     rows = []
 
     def add(label, objective, differentiator, model, seconds, **extra):
+        if isinstance(model, Exception):  # a failure is a result too: recorded, and the run goes on
+            rows.append({"system": system_name, "snr": snr, "seed": seed, "label": label, "objective": objective,
+                         "differentiator": differentiator, "error": f"{type(model).__name__}: {model}"})
+            return
         errs = curve_errors(model, truth)
         oe = model.info.get("output_error", {}) if hasattr(model, "info") else {}
         rows.append({"system": system_name, "snr": snr, "seed": seed, "label": label, "objective": objective,
@@ -75,20 +89,19 @@ def run_record(job):
     for method in methods:
         diffs = DIFFERENTIATORS if method == "nn-cc+sym" else ("spectral",)
         for diff in diffs:
-            ee, t_ee = _fit(record, method, "equation-error", diff, seed)
+            res, secs = _guarded(_fit, record, method, "equation-error", diff, seed)
+            ee, t_ee = res if isinstance(res, tuple) else (res, secs)
             add(method, "equation-error", diff, ee, t_ee)
-            oe, t_oe = _fit(record, method, "auto", diff, seed)
+            res, secs = _guarded(_fit, record, method, "auto", diff, seed)
+            oe, t_oe = res if isinstance(res, tuple) else (res, secs)
             extra = {"ee_seconds": t_ee}
-            if system_name == "stick-slip":
+            if system_name == "stick-slip" and not isinstance(oe, Exception):
                 extra["jump_height"] = oe.curves["f1"].components().get("jump_height")
             add(method, "auto", diff, oe, t_oe, **extra)
-    t0 = time.perf_counter()
-    limit = fit_parametric_oe(record, TRUE_BASIS[system_name], seed=seed)
-    add("parametric (true basis) + output error: the limit", "output-error", "spectral", limit,
-        time.perf_counter() - t0)
-    t0 = time.perf_counter()
-    peer = fit_pysindy_weak(record, seed=seed)
-    add("PySINDy weak form (the peer)", "weak form", "savgol (velocity state)", peer, time.perf_counter() - t0)
+    limit, t_limit = _guarded(fit_parametric_oe, record, TRUE_BASIS[system_name], seed=seed)
+    add("parametric (true basis) + output error: the limit", "output-error", "spectral", limit, t_limit)
+    peer, t_peer = _guarded(fit_pysindy_weak, record, seed=seed)
+    add("PySINDy weak form (the peer)", "weak form", "savgol (velocity state)", peer, t_peer)
     return rows
 
 
@@ -160,8 +173,10 @@ def summarise(rows) -> list[str]:
     import collections
 
     groups = collections.OrderedDict()
+    failed = [r for r in rows if "error" in r]
     for r in rows:
-        groups.setdefault((r["system"], r["snr"], r["label"], r["objective"], r["differentiator"]), []).append(r)
+        if "error" not in r:
+            groups.setdefault((r["system"], r["snr"], r["label"], r["objective"], r["differentiator"]), []).append(r)
     lines = [f"{'system':<10} {'SNR':>4}  {'method':<52} {'objective':<15} {'derivatives':<24} "
              f"{'worst RMSE':>10} {'f1':>9} {'f2':>9} {'s/fit':>6} {'OE/EE':>6}"]
     for (system, snr, label, obj, diff), rs in groups.items():
@@ -172,6 +187,8 @@ def summarise(rows) -> list[str]:
         lines.append(f"{system:<10} {snr:>4g}  {label:<52} {obj:<15} {diff:<24} {worst:>10.3g} "
                      f"{np.mean([r['f1'] for r in rs]):>9.3g} {np.mean([r['f2'] for r in rs]):>9.3g} "
                      f"{np.mean([r['seconds'] for r in rs]):>6.1f} {ratio:>6}")
+    for r in failed:
+        lines.append(f"FAILED {r['system']} {r['snr']:g} dB seed {r['seed']} {r['label']} {r['objective']}: {r['error']}")
     return lines
 
 

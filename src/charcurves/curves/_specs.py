@@ -264,7 +264,7 @@ class Basis(LinearCurve):
             z = sp.Symbol("z")
             exprs = [parse_basis_function(f) for f in key]
             funcs = [sp.lambdify(z, e, modules="torch") for e in exprs]
-            derivs = [sp.lambdify(z, sp.diff(e, z), modules="torch") for e in exprs]
+            derivs = [sp.lambdify(z, _derivative(e, z), modules="torch") for e in exprs]
             pinned = all(sp.simplify(e.subs(z, 0)) == 0 for e in exprs)
             cache = (key, funcs, derivs, pinned)
             self._cache = cache
@@ -352,3 +352,17 @@ class Symbolic(AbstractCurve):
 
     def fitted(self, *args, **kwargs):  # pragma: no cover - the symbolic fitter builds its curves itself
         raise ConfigError("Symbolic curves are built by the symbolic-regression fitter")
+
+
+def _derivative(expr, z):
+    """d expr / dz for a real argument, with the Dirac deltas of jumps (sign, Heaviside) as 0: the
+    derivative the sensitivities of output error use away from the jump."""
+    import sympy as sp
+
+    zr = sp.Symbol("z_real", real=True)
+    d = sp.diff(expr.subs(z, zr), zr)
+    d = d.replace(lambda a: isinstance(a, sp.DiracDelta), lambda a: sp.S.Zero)
+    if d.has(sp.Derivative):
+        raise ConfigError(f"cannot differentiate the basis function {expr}; write it with functions sympy can "
+                          "differentiate (sign, abs, tanh, exp, powers ...)")
+    return d.subs(zr, z)

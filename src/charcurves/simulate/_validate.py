@@ -66,7 +66,10 @@ def estimate_initial_state(model, traj, *, hold: str = "linear", substeps: int =
     def resid(q):
         xs, _, _ = rk4_sampled(accel, ua[:, None], um[:, None], ub[:, None], np.array([q[0] * sx]),
                                np.array([q[1] * sv]), dt, substeps)
-        return np.nan_to_num((xs[:, 0] - x) / sx, nan=1e3)
+        with np.errstate(over="ignore", invalid="ignore"):
+            r = (xs[:, 0] - x) / sx
+        # a diverging trial run: a large finite residual (least squares rejects the step), not inf
+        return np.clip(np.nan_to_num(r, nan=1e3, posinf=1e3, neginf=-1e3), -1e3, 1e3)
 
     sol = least_squares(resid, [x[0] / sx, v_guess / sv], method="lm", xtol=1e-12, ftol=1e-12, max_nfev=200)
     return float(sol.x[0] * sx), float(sol.x[1] * sv)
