@@ -26,6 +26,7 @@ from ._floor import REL_FLOOR as REL_FLOOR
 from ._floor import NoiseFloor as NoiseFloor
 from ._floor import equation_floors as equation_floors
 from ._floor import noise_floor as noise_floor
+from ._floor import noise_variance as noise_variance
 from ._holds import HOLDS as HOLDS
 from ._holds import check_hold as check_hold
 from ._holds import rk4_sampled as rk4_sampled

@@ -12,7 +12,7 @@ import numpy as np
 
 from .._errors import DataError
 
-__all__ = ["NoiseFloor", "noise_floor", "equation_floors", "REL_FLOOR", "NOISE_SETTINGS"]
+__all__ = ["NoiseFloor", "noise_floor", "equation_floors", "noise_variance", "REL_FLOOR", "NOISE_SETTINGS"]
 
 
 #: floor on the noise floor, relative to the forcing's variance (a noise-free record is at 40 dB)
@@ -60,6 +60,21 @@ NOISE_SETTINGS = ((7, 3), (11, 4), (15, 5))
 
 def _noise_variance(y: np.ndarray, settings) -> float:
     return min(_savgol_noise_variance(y, w, o) for w, o in settings)
+
+
+def noise_variance(y, settings: Sequence[tuple[int, int]] = NOISE_SETTINGS) -> float:
+    """Variance of the white noise on a signal sampled finely enough to be smooth over a few samples:
+    the residual of Savitzky-Golay fits, the smallest over ``settings`` (window, order) pairs.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0, 10, 2000)
+    >>> y = np.sin(t) + np.random.default_rng(0).normal(scale=0.1, size=t.size)
+    >>> round(noise_variance(y), 3)   # 0.1 ** 2
+    0.01
+    """
+    return _noise_variance(np.asarray(y, dtype=float), settings)
 
 
 def noise_floor(record, *, gain: float = 1.0, snr_db: float | None = None,
