@@ -72,7 +72,7 @@ def test_a_bad_snr_is_refused():
 def test_a_missing_cross_term_is_far_above_the_floor_and_warned(vdp_30db):
     wrong = _fit(vdp_30db, "poly-cc")  # separable: no f1(x)·x' term
     ratio = wrong.info["self_check"]["loss_over_floor"][0]
-    assert ratio > 300  # measured 1306
+    assert ratio > 300  # measured 2122
     assert not wrong.info["self_check"]["passed"]
     (line,) = wrong.info["warnings"]
     assert line.startswith(f"self-check: the equation-error loss is {ratio:.3g} times the noise floor")
@@ -80,9 +80,9 @@ def test_a_missing_cross_term_is_far_above_the_floor_and_warned(vdp_30db):
     assert positions == sorted(positions)  # named in order, most likely first
     for fix in ("Neural(hidden=", "charcurves select", "--derivatives", "--free-gain"):
         assert fix in line
-    # the right family on the same record: near the floor, no warning (measured 0.55)
+    # the right family on the same record: near the floor, no warning (measured 0.90)
     right = _fit(vdp_30db, "poly-cc", family="position-damping")
-    assert right.info["self_check"]["loss_over_floor"][0] < 1.5 and "warnings" not in right.info
+    assert 0.7 < right.info["self_check"]["loss_over_floor"][0] < 1.5 and "warnings" not in right.info
 
 
 # ---------------------------------------------------------------------- output error: its own loss
@@ -131,3 +131,38 @@ def test_the_cli_takes_a_known_snr_for_the_floor(tmp_path, capsys):
     res = json.loads((tmp_path / "o" / "result.json").read_text())
     assert code == 0 and res["warnings"] == [] and "warning" not in capsys.readouterr().err
     assert res["noise_floor"]["source"] == "given SNR 20 dB" and 0.8 < res["loss_over_floor"][0] < 1.2
+
+
+def test_the_turning_pendulum_of_issue_20_is_warned():
+    """x'' + 0.2 x' + 9.81 sin x = 6 sin 1.3t + 4 sin 2.3t turns over (x runs to about 100 rad): no
+    polynomial of the default degree holds 9.81 sin x over 16 periods (measured: 1459 times the floor;
+    the default nn-cc curve 1658)."""
+    from scipy.integrate import solve_ivp
+
+    def force(t):
+        return 6 * np.sin(1.3 * t) + 4 * np.sin(2.3 * t)
+
+    t = np.linspace(0, 60, 2000)
+    sol = solve_ivp(lambda s, y: [y[1], force(s) - 0.2 * y[1] - 9.81 * np.sin(y[0])], (0, 60), [0.3, 0.0],
+                    t_eval=t, rtol=1e-10, atol=1e-10)
+    x, v = sol.y
+    rec = corrupt(Trajectory(t=t, x=x, F=force(t), v=v, a=force(t) - 0.2 * v - 9.81 * np.sin(x)), 30.0, seed=0)
+    model = _fit(rec, "poly-cc")
+    assert x.max() > 90 and model.info["self_check"]["loss_over_floor"][0] > 300
+    assert model.info["warnings"][0].startswith("self-check:") and "(1) curve capacity" in model.info["warnings"][0]
+
+
+def test_a_two_equation_record_gets_a_ratio_per_equation():
+    from charcurves.systems import corrupt_forces
+
+    rec = corrupt_forces(get_system("two-dof").simulate(), 25.0, seed=0)
+    check = _fit(rec, "poly-cc", family="two-dof").info["self_check"]
+    # measured 0.97 and 0.96: each equation against the floor of its own forcing column
+    assert len(check["loss_over_floor"]) == 2 and all(0.7 < r < 1.5 for r in check["loss_over_floor"])
+    assert len(check["noise_floor"]) == 2 and check["noise_floor"][0] != check["noise_floor"][1]
+
+
+def test_a_first_order_record_is_checked_without_an_acceleration_term():
+    rec = corrupt(get_system("first-order").simulate(), 25.0, on="force", seed=0)
+    check = _fit(rec, "poly-cc", family="first-order").info["self_check"]
+    assert 0.7 < check["loss_over_floor"][0] < 1.5  # measured 0.97 (0.47 with the record's x'' noise added)

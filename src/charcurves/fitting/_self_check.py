@@ -61,10 +61,11 @@ def derivative_noise(model, raw, prepared, prepare, mask=None, seed: int = 0) ->
     return [float(np.var(d[:, e])) for e in range(d.shape[1])], float(max(sig2.values()))
 
 
-def _derivative_scales(record) -> list[float]:
-    """Variance of each equation's highest measured derivative (x'', or x' for first-order records)."""
+def _derivative_scales(record, order: int) -> list[float]:
+    """Variance of each equation's highest derivative (x'', or x' for first-order templates)."""
     if getattr(record, "forces", None) is None:
-        d = record.a if getattr(record, "a", None) is not None else getattr(record, "v", None)
+        d = getattr(record, "a", None) if order >= 2 else None
+        d = d if d is not None else getattr(record, "v", None)
         return [0.0 if d is None else float(np.var(np.asarray(d, dtype=float)))]
     accs = record.accelerations or {}
     states = list(record.states)
@@ -132,16 +133,20 @@ def self_check(model, record, mask=None, *, estimated: bool = False, snr_db: flo
     over the states' noise variance; the equation-error figures are kept under ``equation_error``.
     """
     losses = _equation_losses(model, record, mask)
-    floors = equation_floors(record, gain=float(model.gain), snr_db=snr_db, acceleration_given=not estimated)
-    scales = _derivative_scales(record)
+    # a measured x'' adds its noise to the floor only where the equation holds x'' (not first order)
+    order = int(getattr(model.template, "order", 2))
+    floors = equation_floors(record, gain=float(model.gain), snr_db=snr_db,
+                             acceleration_given=not estimated and order >= 2)
+    scales = _derivative_scales(record, order)
     if len(floors) != len(losses):  # one forcing column shared by several equations
         floors, scales = [floors[0]] * len(losses), [scales[0]] * len(losses)
-    # the floor's noise-free part is 1e-4 (40 dB) of var(g F); a free response (F = 0) has only the
-    # derivative term to balance the curves, so the same fraction of its variance bounds the floor too
+    # the floor's noise-free part is 1e-4 (40 dB) of var(g F); a free response (F constant) has only
+    # the derivative term to balance the curves, so there the same fraction of its variance stands in
     extra = list(state_noise[0]) if state_noise is not None else [0.0] * len(losses)
     if len(extra) != len(losses):
         extra = [float(np.mean(extra))] * len(losses)
-    values = [max(nf.floor + e, REL_FLOOR * s) for nf, e, s in zip(floors, extra, scales)]
+    values = [nf.floor + e if nf.floor - nf.sigma2_acceleration > 0 else max(nf.floor + e, REL_FLOOR * s)
+              for nf, e, s in zip(floors, extra, scales)]
     source = floors[0].source
     if state_noise is not None:
         source += (f"; plus the state's noise (variance {state_noise[1]:.3g}, Savitzky-Golay residual) through "
