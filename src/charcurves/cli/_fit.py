@@ -48,7 +48,7 @@ def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_g
                   gain_on="force", preset="default", seed=0, derivatives="auto", jump="auto", basis=None,
                   keep_sticking=False, truth=None, threads=None, device="cpu", figure=True, quiet=False, source=None,
                   sr_options=None, refine=None, refine_options=None, bands=None, bands_kind="bootstrap",
-                  bands_level=0.95, equation=None, warnings=(), objective=None, report=False):
+                  bands_level=0.95, equation=None, warnings=(), objective=None, report=False, snr=None):
     from ..fitting import CharacteristicCurves
 
     est = CharacteristicCurves(
@@ -57,7 +57,7 @@ def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_g
         basis=basis, sr_options=sr_options, exclude_sticking=not keep_sticking, random_state=seed,
         threads=1 if threads is None else threads, device=device,
         progress=_progress_printer(not quiet), refine=refine, refine_options=refine_options or None,
-        equation=equation, objective=objective or "auto",
+        equation=equation, objective=objective or "auto", snr_db=snr,
     )
     check_out_dir(out_dir)  # before the fit: a bad --out must not cost a long run
     t0 = time.perf_counter()
@@ -118,8 +118,10 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
                   record=None, report=False):
     """result.json (what the inputs and the seed determine, bit-identical on reruns; standard JSON:
     non-finite numbers as null, listed under ``non_finite``), timing.json (wall-clock times), the
-    model, curves.png, summary.txt and (``report``) report.html. ``warnings`` (one line each, about the record) go to stderr
-    and to result.json ``warnings`` (an empty list when there are none)."""
+    model, curves.png, summary.txt and (``report``) report.html. ``warnings`` (one line each, about the record), then the
+    fit's own (``model.info["warnings"]``: the self-check, a failed output error) go to stderr and
+    to result.json ``warnings`` (an empty list when there are none); the self-check's ratios are in
+    result.json ``loss_over_floor``."""
     from ..io import atomic_write_bytes, json_bytes, non_finite_paths
     from ..metrics import curve_errors
 
@@ -127,7 +129,12 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
     result["interrupted"] = bool(model.info.get("interrupted", False))
     if source:
         result["source"] = source
-    result["warnings"] = [str(w) for w in warnings]
+    result["warnings"] = [str(w) for w in warnings] + [str(w) for w in model.info.get("warnings", [])]
+    check = model.info.get("self_check")
+    if check:
+        result["loss_over_floor"] = list(check["loss_over_floor"])
+        result["noise_floor"] = {"value": list(check["noise_floor"]), "source": check["floor_source"],
+                                 "loss": check["loss"]}
     errors = None
     if truth is not None:
         errors = curve_errors(model, truth)
@@ -235,7 +242,7 @@ def cmd_fit(a) -> int:
                           truth=truth, threads=a.threads, device=a.device, figure=not a.no_figure, quiet=a.quiet,
                           source=source_path(a.csv, a.out), refine=a.refine, refine_options=refine_options,
                           bands=a.bands, bands_kind=a.bands_kind, bands_level=a.bands_level, equation=a.equation,
-                          warnings=traj.quality_warnings(), objective=a.objective, report=a.report)
+                          warnings=traj.quality_warnings(), objective=a.objective, report=a.report, snr=a.snr)
     return interrupted_exit(model, a.out)
 
 

@@ -105,6 +105,8 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                    help="output error: RK4 steps per sample (default: chosen from the record's samples per period)")
     f.add_argument("--segment-length", type=int, default=None,
                    help="output error: samples per shooting segment (default 64)")
+    f.add_argument("--snr", type=float, default=None,
+                   help="known SNR of the forcing in dB, for the self-check's noise floor (default: estimated)")
     f.add_argument("--bands", type=int, default=None, metavar="N",
                    help="uncertainty bands of the curves from an ensemble of N refits (result.json, curves.png)")
     f.add_argument("--bands-kind", choices=["bootstrap", "seeds"], default="bootstrap",

@@ -1,5 +1,5 @@
-"""Measured data: trajectories (one degree of freedom, or several: MultiTrajectory), noise models
-and differentiators."""
+"""Measured data: trajectories (one degree of freedom, or several: MultiTrajectory), noise models,
+the noise floor of an equation's loss, and differentiators."""
 
 from ._trajectory import MIN_SAMPLES as MIN_SAMPLES
 from ._trajectory import Trajectory as Trajectory
@@ -21,6 +21,12 @@ from ._differentiate import Spectral as Spectral
 from ._differentiate import TotalVariation as TotalVariation
 from ._differentiate import estimate_derivatives as estimate_derivatives
 from ._differentiate import make_differentiator as make_differentiator
+from ._floor import NOISE_SETTINGS as NOISE_SETTINGS
+from ._floor import REL_FLOOR as REL_FLOOR
+from ._floor import NoiseFloor as NoiseFloor
+from ._floor import equation_floors as equation_floors
+from ._floor import noise_floor as noise_floor
+from ._floor import noise_variance as noise_variance
 from ._holds import HOLDS as HOLDS
 from ._holds import check_hold as check_hold
 from ._holds import rk4_sampled as rk4_sampled

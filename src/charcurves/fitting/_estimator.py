@@ -71,6 +71,10 @@ class CharacteristicCurves:
     derivatives, refine, refine_options
         Older names of ``differentiator`` and the objective ("none" = equation error,
         "output-error", "auto"; ``refine_options`` = :class:`OutputError` settings).
+    snr_db : float, optional
+        Known signal-to-noise ratio of the forcing in dB, for the self-check (the loss of each
+        equation against the noise floor, ``model.info["self_check"]``); default: the floor is
+        estimated from the record.
 
     Examples
     --------
@@ -89,7 +93,7 @@ class CharacteristicCurves:
                  gauge=None, gain_on: str = "force", jump="auto", basis=None, options: dict | None = None,
                  sr_options: dict | None = None, hidden: Sequence[int] | None = None, activation: str | None = None,
                  exclude_sticking: bool = True, derivatives: str | None = None, refine: str | None = None,
-                 refine_options: dict | None = None):
+                 refine_options: dict | None = None, snr_db: float | None = None):
         self.template = template
         self.method = method
         self.differentiator = differentiator
@@ -117,6 +121,7 @@ class CharacteristicCurves:
         self.derivatives = derivatives
         self.refine = refine
         self.refine_options = refine_options
+        self.snr_db = snr_db
 
     # ------------------------------------------------------------------ scikit-learn contract
     @classmethod
@@ -186,6 +191,14 @@ class CharacteristicCurves:
             gain = float("nan")
         if not np.isfinite(gain) or gain == 0:
             raise ConfigError(f"the fixed gain must be a finite non-zero number, got {self.gain!r}; give e.g. gain=1.0")
+        if self.snr_db is not None:
+            try:
+                snr = float(self.snr_db)
+            except (TypeError, ValueError):
+                snr = float("nan")
+            if not np.isfinite(snr) or isinstance(self.snr_db, bool):
+                raise ConfigError(f"snr_db must be a finite number of dB, got {self.snr_db!r}; give e.g. snr_db=20 "
+                                  "(--snr 20), or leave it out to estimate the noise floor from the record")
         if self.derivatives is not None and self.differentiator is not None and self.derivatives != self.differentiator:
             raise ConfigError("give the differentiator once: derivatives= is the older name of differentiator=")
         self._check_basis_cost()

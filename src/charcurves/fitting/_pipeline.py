@@ -7,7 +7,9 @@
 5. post-SR (closed forms), when asked;
 6. output error, when the objective asks for it ("auto": on records whose derivatives were
    estimated), on the final curves (the closed forms after post-SR);
-7. the settings that shaped the answer, stored in each model's ``info["settings"]``.
+7. the settings that shaped the answer, stored in each model's ``info["settings"]``;
+8. the self-check (:mod:`._self_check`): each equation's loss against the record's noise floor,
+   in ``info["self_check"]``, with a warning in ``info["warnings"]`` when far above it.
 
 Ctrl-C during training keeps the best weights so far; during post-SR or output error it keeps the
 finished fit and says what was skipped.
@@ -19,6 +21,7 @@ from .._errors import ConfigError
 from ._fit_path import fit_records, fitter_kind, resolve_jumps, sticking_masks
 from ._methods import METHODS, check_method_options
 from ._objectives import resolve_objective
+from ._self_check import derivative_noise, self_check
 
 __all__ = ["run_pipeline", "raw_fit", "check_device", "differentiator_used"]
 
@@ -90,7 +93,7 @@ def _fit_stage(est, records: list, seeds):
                          threads=est.threads, progress=est.progress)
     return {"models": models, "prepared": prepared, "estimated": estimated, "seeds": seeds, "mode": mode,
             "oe_settings": oe_settings, "preset": preset, "reps": reps, "structure": structure, "sym": sym,
-            "method": method, "diff": diff, "jumps": jumps, "use_oe": use_oe}
+            "method": method, "diff": diff, "jumps": jumps, "use_oe": use_oe, "masks": masks}
 
 
 def run_pipeline(est, records: list, seeds=None) -> list:
@@ -122,7 +125,23 @@ def run_pipeline(est, records: list, seeds=None) -> list:
             "polynomial_terms": {n: list(p) for n, p in jumps[k][1]},
             "gauge": list(structure.anchors),
         }
+        _check(est, ctx, m, records[k], k)
     return models
+
+
+def _check(est, ctx, model, raw, k: int) -> None:
+    """The self-check of one model; with estimated derivatives, the state's noise carried through them."""
+    from ..templates import prepare_record
+
+    prepared, mask, estimated = ctx["prepared"][k], ctx["masks"][k], bool(ctx["estimated"][k])
+    noise = None
+    if estimated:
+        def prepare(rec):
+            return prepare_record(rec, ctx["structure"], ctx["sym"], ctx["diff"], f"method {ctx['method']}",
+                                  est.without_prior)[0]
+
+        noise = derivative_noise(model, raw, prepared, prepare, mask, seed=ctx["seeds"][k])
+    self_check(model, prepared, mask, estimated=estimated, snr_db=est.snr_db, state_noise=noise, raw=raw)
 
 
 def _post_sr(est, models, prepared, seeds, stop):

@@ -13,11 +13,11 @@ from ._bands import attach_bands as attach_bands
 from ._bands import band_coverage as band_coverage
 from ._bands import curve_bands as curve_bands
 from ._loops import LoopResult as LoopResult
-from ._floor import NoiseFloor as NoiseFloor
+from ..data import NoiseFloor as NoiseFloor
 from ._family import SelectionReport as SelectionReport
 from ._loops import inner_loop as inner_loop
 from ._loops import middle_loop as middle_loop
-from ._floor import noise_floor as noise_floor
+from ..data import noise_floor as noise_floor
 from ._loops import outer_loop as outer_loop
 from ._family import select_family as select_family
 from ._family import split_record as split_record

@@ -24,7 +24,7 @@ import numpy as np
 
 from .._errors import DataError
 
-from ._floor import REL_FLOOR, NoiseFloor, noise_floor
+from ..data import REL_FLOOR, NoiseFloor, noise_floor
 
 __all__ = ["inner_loop", "middle_loop", "outer_loop", "LoopResult", "INNER_FACTOR", "MIDDLE_THRESHOLD",
            "OUTER_FRACTION", "SEPARATION_EPS", "REL_FLOOR", "NoiseFloor", "noise_floor"]

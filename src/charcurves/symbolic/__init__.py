@@ -23,7 +23,7 @@ Examples
 """
 
 from ._decompose import decompose
-from ._distill import distill_curve, distill_curve_front, has_jump
+from ._distill import TRIG_TURNS, distill_curve, distill_curve_front, has_jump, turns
 from ._engine import (
     DEFAULT_SR_OPTIONS,
     OPERATORS,
@@ -45,6 +45,7 @@ __all__ = [
     "POLY_OPERATORS",
     "SELECTION_CRITERIA",
     "SR_OPTION_KEYS",
+    "TRIG_TURNS",
     "TANH_OPERATORS",
     "FrontEntry",
     "OperonEngine",
@@ -57,6 +58,7 @@ __all__ = [
     "eval_expression",
     "expression_complexity",
     "has_jump",
+    "turns",
     "make_engine",
     "operators_option",
     "parse_infix",

@@ -34,7 +34,11 @@ from .._errors import ConfigError
 from ..curves import FittedCurve, SymbolicFittedCurve, jump_log_eps
 from ._engine import POLY_OPERATORS, TANH_OPERATORS, SymbolicRegressionEngine, make_engine
 
-__all__ = ["distill_curve", "distill_curve_front", "has_jump"]
+__all__ = ["distill_curve", "distill_curve_front", "has_jump", "turns", "TRIG_TURNS"]
+
+#: A curve that turns (changes direction by more than a tenth of its range) at least this many
+#: times over its domain oscillates: the automatic operator set then adds sin and cos.
+TRIG_TURNS = 4
 
 #: One grid step carrying more than this share of the curve's range (and ...)
 _JUMP_RANGE_SHARE = 0.05
@@ -85,7 +89,8 @@ def distill_curve(curve: FittedCurve, engine: SymbolicRegressionEngine | None = 
         Grid points over ``curve.domain`` (the paper: 1000).
     random_state : int
     operators : sequence of str, optional
-        Operator set; by default + - * plus tanh when :func:`has_jump`.
+        Operator set; by default + - * plus tanh when :func:`has_jump`, plus sin and cos when the
+        curve oscillates (:func:`turns` at least :data:`TRIG_TURNS` times over its domain).
 
     Returns
     -------
@@ -94,6 +99,37 @@ def distill_curve(curve: FittedCurve, engine: SymbolicRegressionEngine | None = 
         :func:`distill_model` re-applies the gauge). ``meta`` holds the SR digest.
     """
     return distill_curve_front(curve, engine, n=n, random_state=random_state, operators=operators)[0]
+
+
+def turns(y: np.ndarray, share: float = 0.1) -> int:
+    """How many times ``y`` changes direction by more than ``share`` of its range (wiggles below
+    that are ignored): 0 for a monotone curve, 1 for a parabola, about 2 per period of a sine.
+
+    Examples
+    --------
+    >>> z = np.linspace(-2, 2, 1000)
+    >>> turns(z**3 + z), turns(z**3 - z), turns(np.sin(25 * z))   # 100 rad: 32 extrema of sin
+    (0, 0, 32)
+
+    (the wiggle of z³ − z near 0 is under a tenth of its range.)
+    """
+    y = np.asarray(y, dtype=float)
+    thr = share * float(np.ptp(y)) if y.size else 0.0
+    if thr <= 0:
+        return 0
+    count, direction, hi, lo = 0, 0, y[0], y[0]
+    for value in y[1:]:
+        if direction >= 0 and value > hi:
+            hi = value
+        if direction <= 0 and value < lo:
+            lo = value
+        if direction >= 0 and hi - value > thr:
+            count += direction == 1
+            direction, lo = -1, value
+        elif direction <= 0 and value - lo > thr:
+            count += direction == -1
+            direction, hi = 1, value
+    return int(count)
 
 
 def distill_curve_front(curve: FittedCurve, engine, *, n: int, random_state: int, operators):
@@ -120,6 +156,8 @@ def distill_curve_front(curve: FittedCurve, engine, *, n: int, random_state: int
         mode = "smooth part + learned jump"
     else:
         ops = tuple(operators) if operators is not None else (TANH_OPERATORS if jump else POLY_OPERATORS)
+        if operators is None and turns(y) >= TRIG_TURNS:  # an oscillating curve (a pendulum's sin x)
+            ops = ops + ("sin", "cos")
         res = engine.fit(z[:, None], y, ["z"], random_state=int(random_state), operators=ops, context="curve")
         expr, mse = res.expression, res.mse
         front = [e for _c, _m, e in res.front]

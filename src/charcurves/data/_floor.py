@@ -1,6 +1,6 @@
 """The noise floor of an equation's loss: what a perfect fit leaves, from the record's own noise
-(Savitzky-Golay residuals of the forcing and the acceleration) or from a given SNR. The inner loop
-compares every fit's loss with it."""
+(Savitzky-Golay residuals of the forcing and the acceleration) or from a given SNR. Every fit
+compares its loss with it (``info["self_check"]``), and so does selection's inner loop."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 
 from .._errors import DataError
 
-__all__ = ["NoiseFloor", "noise_floor", "REL_FLOOR"]
+__all__ = ["NoiseFloor", "noise_floor", "equation_floors", "noise_variance", "REL_FLOOR", "NOISE_SETTINGS"]
 
 
 #: floor on the noise floor, relative to the forcing's variance (a noise-free record is at 40 dB)
@@ -62,6 +62,21 @@ def _noise_variance(y: np.ndarray, settings) -> float:
     return min(_savgol_noise_variance(y, w, o) for w, o in settings)
 
 
+def noise_variance(y, settings: Sequence[tuple[int, int]] = NOISE_SETTINGS) -> float:
+    """Variance of the white noise on a signal sampled finely enough to be smooth over a few samples:
+    the residual of Savitzky-Golay fits, the smallest over ``settings`` (window, order) pairs.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0, 10, 2000)
+    >>> y = np.sin(t) + np.random.default_rng(0).normal(scale=0.1, size=t.size)
+    >>> round(noise_variance(y), 3)   # 0.1 ** 2
+    0.01
+    """
+    return _noise_variance(np.asarray(y, dtype=float), settings)
+
+
 def noise_floor(record, *, gain: float = 1.0, snr_db: float | None = None,
                 settings: Sequence[tuple[int, int]] = NOISE_SETTINGS,
                 acceleration_given: bool | None = None) -> NoiseFloor:
@@ -95,7 +110,7 @@ def noise_floor(record, *, gain: float = 1.0, snr_db: float | None = None,
     F = np.asarray(record.F, dtype=float)
     g2 = float(gain) ** 2
     if snr_db is not None:
-        from ..data._noise import snr_to_eta
+        from ._noise import snr_to_eta
 
         eta2 = snr_to_eta(snr_db) ** 2
         s2f = float(np.var(F)) * eta2 / (1.0 + eta2)  # var(F) = var(clean) (1 + eta²)
@@ -112,10 +127,24 @@ def noise_floor(record, *, gain: float = 1.0, snr_db: float | None = None,
     return NoiseFloor(sigma2_force=s2f, sigma2_acceleration=s2a, floor=floor, source=source)
 
 
-def _multi_noise_floor(record, gain, snr_db, settings, acceleration_given) -> NoiseFloor:
-    """Several equations, each with its forcing column (and its state's x''): the model's loss is
-    the mean squared residual over all of them, so the floor is the mean of their floors."""
-    from ..data._trajectory import Trajectory
+def equation_floors(record, *, gain: float = 1.0, snr_db: float | None = None,
+                    settings: Sequence[tuple[int, int]] = NOISE_SETTINGS,
+                    acceleration_given: bool | None = None) -> list[NoiseFloor]:
+    """The noise floor of each equation of ``record``: one for a one-DOF record, one per forcing
+    column (with its state's x'') for a :class:`MultiTrajectory`; arguments as :func:`noise_floor`.
+
+    Examples
+    --------
+    >>> from charcurves.systems import get_system
+    >>> from charcurves.data import corrupt
+    >>> record = corrupt(get_system("duffing").simulate(), 20, seed=0)
+    >>> [round(nf.floor, 5) for nf in equation_floors(record, snr_db=20)]
+    [0.00127]
+    """
+    if getattr(record, "forces", None) is None:
+        return [noise_floor(record, gain=gain, snr_db=snr_db, settings=settings,
+                            acceleration_given=acceleration_given)]
+    from ._trajectory import Trajectory
 
     accs = record.accelerations or {}
     states = list(record.states)
@@ -127,6 +156,14 @@ def _multi_noise_floor(record, gain, snr_db, settings, acceleration_given) -> No
                          record.velocities[state], a, name=record.name)
         parts.append(noise_floor(one, gain=gain, snr_db=snr_db, settings=settings,
                                  acceleration_given=acceleration_given))
+    return parts
+
+
+def _multi_noise_floor(record, gain, snr_db, settings, acceleration_given) -> NoiseFloor:
+    """Several equations, each with its forcing column (and its state's x''): the model's loss is
+    the mean squared residual over all of them, so the floor is the mean of their floors."""
+    parts = equation_floors(record, gain=gain, snr_db=snr_db, settings=settings,
+                            acceleration_given=acceleration_given)
     return NoiseFloor(sigma2_force=float(np.mean([p.sigma2_force for p in parts])),
                       sigma2_acceleration=float(np.mean([p.sigma2_acceleration for p in parts])),
                       floor=float(np.mean([p.floor for p in parts])),
