@@ -37,3 +37,21 @@ def _torch_threads():
 
 def rmse(a, b):
     return float(np.sqrt(np.mean((np.asarray(a) - np.asarray(b)) ** 2)))
+
+
+@pytest.fixture(scope="session")
+def turning_pendulum():
+    """The turning pendulum of issue 20: x'' + 0.2 x' + 9.81 sin x = 6 sin 1.3t + 4 sin 2.3t, x(0) = 0.3,
+    2 000 samples over 60 s (x runs to about 100 rad), 30 dB on F, v and a given."""
+    from scipy.integrate import solve_ivp
+
+    from charcurves.data import Trajectory, corrupt
+
+    def force(t):
+        return 6 * np.sin(1.3 * t) + 4 * np.sin(2.3 * t)
+
+    t = np.linspace(0, 60, 2000)
+    sol = solve_ivp(lambda s, y: [y[1], force(s) - 0.2 * y[1] - 9.81 * np.sin(y[0])], (0, 60), [0.3, 0.0],
+                    t_eval=t, rtol=1e-10, atol=1e-10)
+    x, v = sol.y
+    return corrupt(Trajectory(t=t, x=x, F=force(t), v=v, a=force(t) - 0.2 * v - 9.81 * np.sin(x)), 30.0, seed=0)

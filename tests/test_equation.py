@@ -180,3 +180,19 @@ def test_fit_refuses_scalar_that_trades_with_curve_constants(duffing_20db):
 def test_separable_only_methods_say_which_families_they_support(duffing_20db):
     with pytest.raises(ConfigError, match="supports the separable family only.*nn-cc"):
         CharacteristicCurves(family="position-damping", method="sr-cc").fit(duffing_20db)
+
+
+def test_summary_names_a_user_written_equation_and_a_family(tmp_path, capsys):
+    """summary.txt says what was fitted: a user-written equation is not "the separable family"."""
+    from charcurves.cli import main
+
+    csv = tmp_path / "d.csv"
+    assert main(["simulate", "duffing", "--out", str(csv), "--snr", "30", "--seed", "0"]) == 0
+    for args, out, expected in (
+        (["--equation", "x'' + f1(x') + f2(x) = F"], "eq", "on a user-written equation: x'' + f1(x') + f2(x) = F"),
+        ([], "sep", "on the separable family: x'' + f1(x') + f2(x) = F"),
+    ):
+        assert main(["fit", str(csv), *args, "--method", "poly-cc", "--out", str(tmp_path / out), "--no-figure",
+                     "--quiet"]) == 0
+        first = (tmp_path / out / "summary.txt").read_text().splitlines()[0]
+        assert first.endswith(expected) and "— poly-cc " in first, first

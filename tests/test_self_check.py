@@ -133,22 +133,13 @@ def test_the_cli_takes_a_known_snr_for_the_floor(tmp_path, capsys):
     assert res["noise_floor"]["source"] == "given SNR 20 dB" and 0.8 < res["loss_over_floor"][0] < 1.2
 
 
-def test_the_turning_pendulum_of_issue_20_is_warned():
+def test_the_turning_pendulum_of_issue_20_is_warned(turning_pendulum):
     """x'' + 0.2 x' + 9.81 sin x = 6 sin 1.3t + 4 sin 2.3t turns over (x runs to about 100 rad): no
     polynomial of the default degree holds 9.81 sin x over 16 periods (measured: 1459 times the floor;
     the default nn-cc curve 1658)."""
-    from scipy.integrate import solve_ivp
-
-    def force(t):
-        return 6 * np.sin(1.3 * t) + 4 * np.sin(2.3 * t)
-
-    t = np.linspace(0, 60, 2000)
-    sol = solve_ivp(lambda s, y: [y[1], force(s) - 0.2 * y[1] - 9.81 * np.sin(y[0])], (0, 60), [0.3, 0.0],
-                    t_eval=t, rtol=1e-10, atol=1e-10)
-    x, v = sol.y
-    rec = corrupt(Trajectory(t=t, x=x, F=force(t), v=v, a=force(t) - 0.2 * v - 9.81 * np.sin(x)), 30.0, seed=0)
+    rec = turning_pendulum
     model = _fit(rec, "poly-cc")
-    assert x.max() > 90 and model.info["self_check"]["loss_over_floor"][0] > 300
+    assert rec.x.max() > 90 and model.info["self_check"]["loss_over_floor"][0] > 300
     assert model.info["warnings"][0].startswith("self-check:") and "(1) curve capacity" in model.info["warnings"][0]
 
 

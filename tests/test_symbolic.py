@@ -312,23 +312,6 @@ def test_post_sr_never_makes_sindy_jump_stand_in_worse():
 
 
 # ------------------------------------------------------------------ issue 20: trigonometric laws
-def _pendulum_record():
-    """The turning pendulum of issue 20: x'' + 0.2 x' + 9.81 sin x = 6 sin 1.3t + 4 sin 2.3t, x(0) = 0.3,
-    2 000 samples over 60 s (x runs to about 100 rad), 30 dB on F, v and a given."""
-    from scipy.integrate import solve_ivp
-
-    from charcurves.data import corrupt
-
-    def force(t):
-        return 6 * np.sin(1.3 * t) + 4 * np.sin(2.3 * t)
-
-    t = np.linspace(0, 60, 2000)
-    sol = solve_ivp(lambda s, y: [y[1], force(s) - 0.2 * y[1] - 9.81 * np.sin(y[0])], (0, 60), [0.3, 0.0],
-                    t_eval=t, rtol=1e-10, atol=1e-10)
-    x, v = sol.y
-    return corrupt(Trajectory(t=t, x=x, F=force(t), v=v, a=force(t) - 0.2 * v - 9.81 * np.sin(x)), 30.0, seed=0)
-
-
 def test_turns_counts_the_oscillations_of_a_curve():
     from charcurves.symbolic import TRIG_TURNS, turns
 
@@ -354,7 +337,7 @@ def test_post_sr_offers_sin_and_cos_to_an_oscillating_curve():
     assert fn.func is sp.sin and abs(float(coef) - 9.81) < 0.02 * 9.81  # measured 9.8108 sin(1.000002 z)
 
 
-def test_the_turning_pendulum_distils_to_a_sine_by_default():
+def test_the_turning_pendulum_distils_to_a_sine_by_default(turning_pendulum):
     """The automatic operator set: + - * for the damping, + - * sin cos for the restoring curve, which turns
     33 times over the record. The curves here come from a Parametric fit (the default network does not
     learn this curve yet: issue 20 item 1); post-SR then distils f2 by symbolic regression (the knee of
@@ -362,7 +345,7 @@ def test_the_turning_pendulum_distils_to_a_sine_by_default():
     from charcurves.fitting import CharacteristicCurves
 
     model = CharacteristicCurves(method="parametric", basis="f1=z; f2=sin(z)", post_sr=True, threads=1,
-                                 random_state=0).fit(_pendulum_record()).model_
+                                 random_state=0).fit(turning_pendulum).model_
     meta = model.info["post_sr"]
     assert meta["f1"]["operators"] == ["add", "sub", "mul"]
     assert meta["f2"]["operators"] == ["add", "sub", "mul", "sin", "cos"] and "data_guard" not in meta["f2"]

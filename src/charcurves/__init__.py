@@ -33,6 +33,8 @@ _LAZY: dict[str, str | tuple[str, str]] = {
     "Spline": "charcurves.data",
     "FiniteDifference": "charcurves.data",
     "Given": "charcurves.data",
+    "KalmanSmoother": "charcurves.data",
+    "TotalVariation": "charcurves.data",
     "get_system": "charcurves.systems",
     # curve representations
     "AbstractCurve": "charcurves.curves",

@@ -168,7 +168,9 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
     from .. import __version__
     from ..fitting import format_closed_form
 
-    lines = [f"charcurves {__version__} — {method} on the {family} family: {model.template.equation}",
+    fam = getattr(model.template, "family", family)
+    where = "a user-written equation" if fam == "custom" else f"the {fam} family"
+    lines = [f"charcurves {__version__} — {method} on {where}: {model.template.equation}",
              f"fit time {elapsed:.2f} s, data loss {model.loss:.4g}, gain {model.gain:.6g}"
              + ("" if not free_gain else " (learned)") + f", free constant {model.offset:.4g}"]
     for name, c in model.curves.items():
