@@ -38,8 +38,8 @@ def test_the_default_network_learns_the_turning_pendulum(turning_pendulum, tmp_p
 
 @pytest.mark.parametrize("system", ["duffing", "stick-slip"])
 def test_the_paper_records_get_no_harmonic(system):
-    """The detection must not fire on the paper's curves (measured: largest F 3.4-11.4 over seeds 0-2,
-    against the threshold of 30), so their fits are what they were."""
+    """The detection must not fire on the paper's curves (measured: largest F 3.4-9.3 on Duffing, up to
+    26.2 on stick-slip over seeds 0-2, against the threshold of 100), so their fits are what they were."""
     template = get_template("separable")
     clean = get_system(system).simulate()
     jumps = ("f1",) if system == "stick-slip" else ()
@@ -47,7 +47,7 @@ def test_the_paper_records_get_no_harmonic(system):
         rec = corrupt(clean, 20.0, on="force", seed=seed)
         for sym in ("none", "odd"):
             assert harmonic_test(rec, template, {"f1": sym, "f2": sym}, ["f1", "f2"], jumps) == {}
-    assert HARMONIC_F_THRESHOLD == 30.0
+    assert HARMONIC_F_THRESHOLD == 100.0
 
 
 def test_a_duffing_fit_prints_the_empty_choice(duffing_20db):
