@@ -145,6 +145,8 @@ class NeuralFittedCurve(FittedCurve):
         sl = spec.slices()
         lin = self.theta[:, sl["linear"]].reshape(-1, 1) if "linear" in sl else None
         poly = [(self.theta[:, sl["poly"].start + j].reshape(-1, 1), k) for j, k in enumerate(spec.poly_powers)]
+        harm = [(self.theta[:, sl["harmonic"].start + j].reshape(-1, 1), np.sin if kind == "sin" else np.cos, w)
+                for j, (kind, w) in enumerate(spec.harmonic_columns)]
         mu = self.theta[:, sl["jump_height"]].reshape(-1, 1) if spec.jump else None
         eps = np.exp(jump_log_eps(self.theta[:, sl["jump_log_eps"]])).reshape(-1, 1) if spec.jump else None
         sym = spec.exact_symmetry
@@ -169,6 +171,8 @@ class NeuralFittedCurve(FittedCurve):
                 y = y + lin * u
             for c, k in poly:
                 y = y + c * u**k
+            for c, fn, w in harm:
+                y = y + c * fn(w * u)
             if mu is not None:
                 y = y + mu * np.tanh(u / eps)
             return (y.mean(axis=0) * s_out).reshape(z.shape)
@@ -200,6 +204,8 @@ class NeuralFittedCurve(FittedCurve):
         if self.spec.jump:
             out["jump_height"] = float(self.theta[:, sl["jump_height"]].mean() * self.out_scale)
             out["jump_width"] = float(np.exp(jump_log_eps(self.theta[:, sl["jump_log_eps"]])).mean() * self.in_scale)
+        if self.spec.harmonics:  # angular frequencies in the curve's own argument
+            out["harmonic_frequencies"] = [w / self.in_scale for w in self.spec.harmonics]
         out["ensemble_members"] = int(self.theta.shape[0])
         return out
 
@@ -214,6 +220,7 @@ class NeuralFittedCurve(FittedCurve):
                 "linear_term": self.spec.linear_term,
                 "jump": self.spec.jump,
                 **({"powers": list(self.spec.powers)} if self.spec.powers else {}),
+                **({"harmonics": list(self.spec.harmonics)} if self.spec.harmonics else {}),
             },
             in_scale=self.in_scale,
             out_scale=self.out_scale,
@@ -231,6 +238,7 @@ class NeuralFittedCurve(FittedCurve):
             linear_term=bool(net["linear_term"]),
             jump=bool(net["jump"]),
             powers=tuple(int(k) for k in net.get("powers", ())),
+            harmonics=tuple(float(w) for w in net.get("harmonics", ())),
         )
         key = f"{d['name']}.theta"
         if key not in arrays:

@@ -3,7 +3,7 @@
 A curve acts on a scaled argument ``u = z / scale`` (no shift, so odd/even stay odd/even) and
 returns values in units of the target scale. It is one composition rule, not a class per variant:
 
-    f(u) = sym[ MLP(u) ] + c_lin * u + mu * tanh(u / eps)
+    f(u) = sym[ MLP(u) ] + c_lin * u + sum_k c_k u^k + sum_w (a_w sin(w u) + b_w cos(w u)) + mu * tanh(u / eps)
 
 ``sym`` is the exact parametrisation (odd: (h(u) - h(-u)) / 2, even: (h(u) + h(-u)) / 2) or
 the identity when the prior is imposed as the paper's penalty. The linear part is dropped for
@@ -81,6 +81,11 @@ class NeuralCurve:
         Further polynomial terms ``c_k u^k`` beside the network (k >= 2; under an exact parity only
         the powers of that parity are kept). Free of weight decay, so the network only models what
         a low-order polynomial cannot, which keeps the curve's ends steady where few samples lie.
+    harmonics : tuple of float
+        Angular frequencies ``w`` (in the scaled argument ``u``) of harmonic terms
+        ``a_w sin(w u) + b_w cos(w u)`` beside the network (only the sine under an exact odd prior,
+        only the cosine under an even one). Free of weight decay: they carry a curve that oscillates
+        over many periods of its argument, which a small network cannot follow.
     """
 
     hidden: tuple[int, ...] = (8,)
@@ -91,6 +96,7 @@ class NeuralCurve:
     jump: bool = False
     powers: tuple[int, ...] = ()
     decay_powers: bool = True
+    harmonics: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         if self.symmetry not in SYMMETRIES:
@@ -112,6 +118,10 @@ class NeuralCurve:
         if any(k < 2 or k > 12 for k in powers) or len(set(powers)) != len(powers):
             raise ConfigError(f"powers must be distinct integers from 2 to 12, got {self.powers!r}")
         object.__setattr__(self, "powers", powers)
+        harmonics = tuple(float(w) for w in self.harmonics)
+        if any(not math.isfinite(w) or w <= 0 for w in harmonics) or len(set(harmonics)) != len(harmonics):
+            raise ConfigError(f"harmonics must be distinct positive frequencies, got {self.harmonics!r}")
+        object.__setattr__(self, "harmonics", harmonics)
 
     # ------------------------------------------------------------------ layout
     @property
@@ -142,8 +152,22 @@ class NeuralCurve:
         return tuple(k for k in self.powers if sym == "none" or (k % 2 == 1) == (sym == "odd"))
 
     @property
+    def harmonic_columns(self) -> tuple[tuple[str, float], ...]:
+        """``("sin", w)`` and ``("cos", w)`` pairs of the harmonic terms that survive the exact parity."""
+        sym = self.exact_symmetry
+        kinds = {"none": ("sin", "cos"), "odd": ("sin",), "even": ("cos",)}[sym]
+        return tuple((k, w) for w in self.harmonics for k in kinds)
+
+    def harmonic_values(self, u: torch.Tensor, derivative: bool = False) -> list:
+        """The harmonic columns at ``u`` (their derivatives in ``u`` with ``derivative``)."""
+        if derivative:
+            return [w * torch.cos(w * u) if k == "sin" else -w * torch.sin(w * u) for k, w in self.harmonic_columns]
+        return [torch.sin(w * u) if k == "sin" else torch.cos(w * u) for k, w in self.harmonic_columns]
+
+    @property
     def n_params(self) -> int:
-        return self.mlp.n_params + int(self.has_linear) + len(self.poly_powers) + 2 * int(self.jump)
+        return (self.mlp.n_params + int(self.has_linear) + len(self.poly_powers) + len(self.harmonic_columns)
+                + 2 * int(self.jump))
 
     @property
     def pinned_at_zero(self) -> bool:
@@ -159,6 +183,9 @@ class NeuralCurve:
         if self.poly_powers:
             out["poly"] = slice(n, n + len(self.poly_powers))
             n += len(self.poly_powers)
+        if self.harmonic_columns:
+            out["harmonic"] = slice(n, n + len(self.harmonic_columns))
+            n += len(self.harmonic_columns)
         if self.jump:
             out["jump_height"] = slice(n, n + 1)
             out["jump_log_eps"] = slice(n + 1, n + 2)
@@ -179,6 +206,8 @@ class NeuralCurve:
             parts.append(torch.zeros(K, 1, dtype=dtype))
         if self.poly_powers:
             parts.append(torch.zeros(K, len(self.poly_powers), dtype=dtype))
+        if self.harmonic_columns:
+            parts.append(torch.zeros(K, len(self.harmonic_columns), dtype=dtype))
         if self.jump:
             parts.append(torch.zeros(K, 1, dtype=dtype))
             parts.append(torch.full((K, 1), math.log(0.01), dtype=dtype))
@@ -247,6 +276,10 @@ class NeuralCurve:
             c = theta[:, sl["poly"]]
             for j, k in enumerate(self.poly_powers):
                 y = y + c[:, j:j + 1] * u**k
+        if self.harmonic_columns:
+            a = theta[:, sl["harmonic"]]
+            for j, col in enumerate(self.harmonic_values(u)):
+                y = y + a[:, j:j + 1] * col
         if self.jump:
             mu = theta[:, sl["jump_height"]]
             eps = torch.exp(jump_log_eps(theta[:, sl["jump_log_eps"]]))
@@ -288,6 +321,8 @@ class NeuralCurve:
             out.append((sl["linear"].start, u, False))
         for j, k in enumerate(self.poly_powers):
             out.append((sl["poly"].start + j, u**k, False))
+        for j, col in enumerate(self.harmonic_values(u)):
+            out.append((sl["harmonic"].start + j, col, False))
         if self.jump:
             eps = torch.exp(jump_log_eps(theta[:, sl["jump_log_eps"]]))
             out.append((sl["jump_height"].start, torch.tanh(u / eps), False))
@@ -311,6 +346,14 @@ class NeuralCurve:
                 cols.append((u**k).unsqueeze(-1))
                 if d is not None:
                     d = d + c[:, j:j + 1] * k * u ** (k - 1)
+        if self.harmonic_columns:
+            a = theta[:, sl["harmonic"]]
+            for j, col in enumerate(self.harmonic_values(u)):
+                y = y + a[:, j:j + 1] * col
+                cols.append(col.unsqueeze(-1))
+            if d is not None:
+                for j, col in enumerate(self.harmonic_values(u, derivative=True)):
+                    d = d + a[:, j:j + 1] * col
         if self.jump:
             mu = theta[:, sl["jump_height"]]
             raw = theta[:, sl["jump_log_eps"]]

@@ -33,6 +33,11 @@ class Neural(AbstractCurve):
         Polynomial terms beside the network (see :class:`~charcurves.curves.NeuralCurve`); "auto"
         (the default preset's): a cubic (odd or unconstrained curves) or quadratic (even curves) term
         where a least-squares F test on the record finds the curve nonlinear, none beside a jump.
+    harmonics : tuple of float or "auto", optional
+        Angular frequencies ``w`` (per unit of the curve's argument ``z``) of harmonic terms
+        ``a sin(w z) + b cos(w z)`` beside the network; "auto" (the default preset's): the
+        frequencies a periodogram of the equation error finds significant (a curve that oscillates
+        over many periods of its argument, see ``charcurves.fitting.harmonic_test``), none otherwise.
 
     Examples
     --------
@@ -43,12 +48,13 @@ class Neural(AbstractCurve):
     kind = "neural"
 
     def __init__(self, hidden=None, activation: str | None = None, symmetry: str | None = None, jump=False,
-                 powers=None):
+                 powers=None, harmonics=None):
         self.hidden = hidden
         self.activation = activation
         self.symmetry = symmetry
         self.jump = jump
         self.powers = powers
+        self.harmonics = harmonics
 
     def check(self) -> None:
         sym = normalise_symmetry(self.symmetry, "Neural")
@@ -60,15 +66,25 @@ class Neural(AbstractCurve):
             if not widths or min(widths) < 1 or any(isinstance(h, bool) for h in self.hidden):
                 raise ConfigError(f"Neural hidden must be a tuple of positive layer widths such as (8,) or (16, 16), "
                                   f"got {self.hidden!r}")
+        if self.harmonics is not None and self.harmonics != "auto":
+            try:
+                ws = [float(w) for w in self.harmonics]
+            except (TypeError, ValueError):
+                ws = [-1.0]
+            if any(not np.isfinite(w) or w <= 0 for w in ws):
+                raise ConfigError(f"Neural harmonics must be 'auto' or a tuple of positive angular frequencies, "
+                                  f"got {self.harmonics!r}")
         if self.jump not in (False, True, "auto"):
             raise ConfigError(f"Neural jump must be False, True or 'auto', got {self.jump!r}")
         if self.jump is True and sym == "even":
             raise ConfigError("a jump at 0 is odd and cannot be part of an even curve; drop the jump or the even prior")
         self.network(None)  # validates the activation
 
-    def network(self, preset, jump: bool | None = None, powers: tuple | None = None):
+    def network(self, preset, jump: bool | None = None, powers: tuple | None = None,
+                harmonics: tuple | None = None):
         """The :class:`~charcurves.curves.NeuralCurve` parametrisation under a training preset
-        (``jump`` and ``powers`` as decided for a record, when the settings say "auto")."""
+        (``jump``, ``powers`` and ``harmonics`` as decided for a record; ``harmonics`` in the scaled
+        argument, as the network sees it)."""
         from ._neural import NeuralCurve
 
         hidden = tuple(self.hidden) if self.hidden is not None else (preset.hidden if preset is not None else (8,))
@@ -77,13 +93,20 @@ class Neural(AbstractCurve):
                            symmetry_mode=preset.symmetry_mode if preset is not None else "exact",
                            linear_term=preset.linear_term if preset is not None else True,
                            jump=bool(self.jump is True if jump is None else jump),
-                           powers=tuple(powers) if powers is not None else self._fixed_powers(preset))
+                           powers=tuple(powers) if powers is not None else self._fixed_powers(preset),
+                           harmonics=tuple(harmonics) if harmonics is not None else ())
 
     def powers_setting(self, preset):
         """The polynomial terms asked for: a tuple, or "auto" (decided per record by the fitter)."""
         if self.powers is not None:
             return self.powers if self.powers == "auto" else tuple(self.powers)
         return preset.powers if preset is not None else ()
+
+    def harmonics_setting(self, preset):
+        """The harmonic frequencies asked for (per unit of ``z``): a tuple, or "auto"."""
+        if self.harmonics is not None:
+            return self.harmonics if self.harmonics == "auto" else tuple(float(w) for w in self.harmonics)
+        return preset.harmonics if preset is not None else ()
 
     def _fixed_powers(self, preset) -> tuple:
         p = self.powers_setting(preset)

@@ -24,6 +24,8 @@ from ._estimator import CharacteristicCurves as CharacteristicCurves
 from ._estimator import fit as fit
 from ._fit_path import JUMP_F_THRESHOLD as JUMP_F_THRESHOLD
 from ._fit_path import dry_friction_test as dry_friction_test
+from ._harmonics import HARMONIC_F_THRESHOLD as HARMONIC_F_THRESHOLD
+from ._harmonics import harmonic_test as harmonic_test
 from ._linear_fit import l0_weight as l0_weight
 from ._methods import DEFAULT_BASIS as DEFAULT_BASIS
 from ._methods import METHODS as METHODS

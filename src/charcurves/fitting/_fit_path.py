@@ -90,9 +90,10 @@ def sticking_masks(records, template: EquationTemplate, estimated: list[bool], *
 
 
 def resolve_jumps(reps: dict, records, template: EquationTemplate, estimated: list[bool], preset: TrainingPreset):
-    """Per record, the layout of the neural curves: ``(jumps, powers)`` -- the curves that get a learned
-    jump (``jump="auto"`` decided per record) and the polynomial terms of each (``powers="auto"``:
-    :func:`nonlinearity_test`)."""
+    """Per record, the layout of the neural curves: ``(jumps, powers, harmonics)`` -- the curves that get
+    a learned jump (``jump="auto"`` decided per record), the polynomial terms of each (``powers="auto"``:
+    :func:`nonlinearity_test`) and their harmonic frequencies in the scaled argument (``harmonics="auto"``:
+    :func:`harmonic_test`)."""
     out = []
     for rec, est in zip(records, estimated):
         layout = []
@@ -118,8 +119,43 @@ def resolve_jumps(reps: dict, records, template: EquationTemplate, estimated: li
                 k = 2 if sym == "even" else 3
                 if nonlinearity_test(rec, template, reps, name, k, layout) > JUMP_F_THRESHOLD:
                     powers.append((name, (k,)))
-        out.append((tuple(layout), tuple(powers)))
+        out.append((tuple(layout), tuple(powers), _harmonics(reps, rec, template, preset, layout)))
     return out
+
+
+def _harmonics(reps: dict, rec, template: EquationTemplate, preset: TrainingPreset, jumps) -> tuple:
+    """``((name, frequencies in u), ...)`` for the neural curves of one record."""
+    from ._harmonics import harmonic_test
+
+    neural = {n: r for n, r in reps.items() if r.kind == "neural"}
+    fixed, auto = {}, []
+    for name, rep in neural.items():
+        setting = rep.harmonics_setting(preset)
+        if setting == "auto":
+            auto.append(name)
+        elif setting:
+            fixed[name] = setting
+    D = template.design(rec) if fixed else None
+    out = {}
+    for name, ws in fixed.items():
+        scale = rep_scale(neural[name], D["args"][name], preset)
+        out[name] = tuple(float(w) * scale for w in ws)
+    if auto:
+        syms = {n: getattr(r, "symmetry_name", "none") for n, r in reps.items()}
+        if preset.symmetry_mode != "exact":
+            syms = {n: "none" for n in syms}
+        found = harmonic_test(rec, template, syms, auto, jumps)
+        if found and not preset.scale_inputs:  # the test works on z / max|z|; the network on z
+            D = template.design(rec)
+            found = {n: tuple(w / max(float(np.max(np.abs(D["args"][n]))), 1e-300) for w in ws)
+                     for n, ws in found.items()}
+        out.update(found)
+    return tuple((n, out[n]) for n in reps if n in out)
+
+
+def rep_scale(rep, z, preset: TrainingPreset) -> float:
+    """The input scale of a curve's argument (``u = z / scale``)."""
+    return float(rep.scaling(z, preset)[1])
 
 
 def nonlinearity_test(traj, template: EquationTemplate, reps: dict, name: str, power: int, jumps) -> float:
@@ -185,9 +221,10 @@ def fit_records(records, template: EquationTemplate, reps: dict, preset: Trainin
     groups: dict[tuple, list[int]] = {}
     for i, rec in enumerate(records):
         groups.setdefault((rec.n_samples, jumps[i]), []).append(i)
-    for (_, (layout, powers)), idx in groups.items():
+    for (_, (layout, powers, harmonics)), idx in groups.items():
         models = fit_gradient([records[i] for i in idx], template, reps, preset, [int(seeds[i]) for i in idx],
                               method=method, masks=[masks[i] for i in idx], jumps=layout, powers=dict(powers),
+                              harmonics=dict(harmonics),
                               device=device, threads=threads, progress=progress)
         for i, m in zip(idx, models):
             out[i] = m

@@ -85,7 +85,7 @@ def finish_model(template: EquationTemplate, method: str, curves: dict, gain: fl
 
 def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, preset: TrainingPreset,
                  seeds: Sequence[int], *, method: str, masks: Sequence[np.ndarray], jumps: Sequence[str] = (),
-                 powers: dict | None = None, device: str = "cpu", threads: int | None = None, progress: Callable | None = None,
+                 powers: dict | None = None, harmonics: dict | None = None, device: str = "cpu", threads: int | None = None, progress: Callable | None = None,
                  chunk_models: int | None = None) -> list[FittedModel]:
     """Fit K records of equal length as one batched computation; returns K fitted models.
 
@@ -121,7 +121,8 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
     params = {}
     for name in names:
         rep = reps[name]
-        params[name] = (rep.network(preset, jump=name in jumps, powers=(powers or {}).get(name, ()))
+        params[name] = (rep.network(preset, jump=name in jumps, powers=(powers or {}).get(name, ()),
+                                    harmonics=(harmonics or {}).get(name, ()))
                         if rep.kind == "neural" else rep.parametrisation(preset))
     pinned = {n: bool(params[n].pinned_at_zero) for n in names}
     template.check_identifiable(pinned)

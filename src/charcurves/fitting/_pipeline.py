@@ -81,7 +81,7 @@ def _fit_stage(est, records: list, seeds):
     masks = sticking_masks(prepared, structure, estimated, exclude=exclude, kind=kind,
                            stick_tol=options.get("stick_tol", "default"))
     jumps = resolve_jumps(reps, prepared, structure, estimated, preset) if kind == "gradient" else \
-        [((), ()) for _ in prepared]
+        [((), (), ()) for _ in prepared]
     use_oe = [mode == "output-error" or (mode == "auto" and e and preset.name != "paper") for e in estimated]
     fit_preset = preset
     if all(use_oe) and not est.wants_post_sr() and preset.combine == "mean":
@@ -123,10 +123,20 @@ def run_pipeline(est, records: list, seeds=None) -> list:
             "symmetry": dict(sym),
             "jumps": list(jumps[k][0]),
             "polynomial_terms": {n: list(p) for n, p in jumps[k][1]},
+            "harmonic_terms": _harmonic_terms(m, jumps[k]),
             "gauge": list(structure.anchors),
         }
         _check(est, ctx, m, records[k], k)
     return models
+
+
+def _harmonic_terms(model, layout) -> dict:
+    """The harmonic terms of each curve as angular frequencies per unit of its argument."""
+    out = {}
+    for name, ws in layout[2]:
+        scale = getattr(model.curves.get(name), "in_scale", 1.0)
+        out[name] = [round(w / scale, 8) for w in ws]
+    return out
 
 
 def _check(est, ctx, model, raw, k: int) -> None:

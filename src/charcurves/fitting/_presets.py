@@ -21,6 +21,9 @@ class TrainingPreset:
     ----------
     name : str
     hidden, activation, linear_term, powers : network shape of every curve (see NeuralCurve)
+    harmonics : tuple of float or "auto"
+        Harmonic terms of every neural curve (see Neural); "auto": where a periodogram of the
+        equation error finds a curve oscillating over many periods of its argument.
     symmetry_mode : {"exact", "penalty"}
     lambda_sym, n_sym : weight and number of points of the symmetry penalty (paper: 10, 1000)
     dtype : {"float64", "float32"}
@@ -59,6 +62,7 @@ class TrainingPreset:
     activation: str = "softplus"
     linear_term: bool = True
     powers: tuple[int, ...] | str = "auto"
+    harmonics: tuple[float, ...] | str = "auto"
     symmetry_mode: str = "exact"
     lambda_sym: float = 10.0
     n_sym: int = 1000
@@ -96,6 +100,8 @@ class TrainingPreset:
         object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
         if self.powers != "auto":
             object.__setattr__(self, "powers", tuple(int(k) for k in self.powers))
+        if self.harmonics != "auto":
+            object.__setattr__(self, "harmonics", tuple(float(w) for w in self.harmonics))
 
     def replace(self, **changes) -> TrainingPreset:
         return dataclasses.replace(self, **changes)
@@ -104,6 +110,7 @@ class TrainingPreset:
         d = dataclasses.asdict(self)
         d["hidden"] = list(self.hidden)
         d["powers"] = self.powers if self.powers == "auto" else list(self.powers)
+        d["harmonics"] = self.harmonics if self.harmonics == "auto" else list(self.harmonics)
         return d
 
 
@@ -118,6 +125,7 @@ PRESETS: dict[str, TrainingPreset] = {
         activation="relu",
         linear_term=False,
         powers=(),
+        harmonics=(),
         symmetry_mode="penalty",
         lambda_sym=10.0,
         n_sym=1000,
