@@ -138,6 +138,7 @@ def _harmonics(reps: dict, rec, template: EquationTemplate, preset: TrainingPres
     D = template.design(rec) if fixed else None
     out = {}
     for name, ws in fixed.items():
+        assert D is not None  # built above whenever there are fixed frequencies
         scale = rep_scale(neural[name], D["args"][name], preset)
         out[name] = tuple(float(w) * scale for w in ws)
     if auto:
