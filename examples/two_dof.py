@@ -1,6 +1,6 @@
 """Two coupled masses: the ``two-dof`` family, four curves from one record.
 
-    python examples/two_dof.py [--out DIR] [--snr 25] [--seed 0]
+    python examples/two_dof.py [--out DIR] [--snr 25] [--samples 1000] [--seed 0]
 
 ``x1'' + f1(x1') + f2(x1 - x2) = F1`` and ``x2'' + f3(x2') + f4(x2 - x1) = F2``: two nonlinear
 dampers (``0.3v + 0.05v^3``, ``0.2v + 0.1v^3``) and a coupling spring
@@ -27,11 +27,13 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=".", help="folder for two_dof.png (default: .)")
     parser.add_argument("--snr", type=float, default=25.0, help="noise on the forcings, dB")
+    parser.add_argument("--samples", type=int, default=1000,
+                        help="record length; the sampling step stays 50.0/999 (the tests: 500)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
 
     system = get_system("two-dof")
-    record = corrupt_forces(system.simulate(t_end=50.0), args.snr, seed=args.seed)  # noise on F1 and F2
+    record = corrupt_forces(system.simulate(t_end=50.0 * (args.samples - 1) / 999, n_points=args.samples), args.snr, seed=args.seed)  # noise on F1 and F2
     estimator = cc.CharacteristicCurves(family="two-dof", method="nn-cc", random_state=args.seed)
     model = estimator.fit(record).model_
 

@@ -1,6 +1,6 @@
 """Your own equation: ``x'' + f1(x)*x' + f2(x) = F`` on a forced Van der Pol oscillator.
 
-    python examples/user_equation.py [--out DIR] [--snr 25] [--seed 0]
+    python examples/user_equation.py [--out DIR] [--snr 25] [--samples 1000] [--seed 0]
 
 When the built-in families do not fit your physics, write the equation. ``cc.Equation`` parses it
 (unknown functions ``f1(.)``, ``f2(.)`` of any state, scalars ``a1``, ``a2``...) and each unknown
@@ -28,11 +28,13 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=".", help="folder for user_equation.png (default: .)")
     parser.add_argument("--snr", type=float, default=25.0, help="noise on the forcing, dB")
+    parser.add_argument("--samples", type=int, default=1000,
+                        help="record length; the sampling step stays 40.0/999 (the tests: 500)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
 
     system = get_system("van-der-pol")
-    record = corrupt(system.simulate(), args.snr, on="force", seed=args.seed)
+    record = corrupt(system.simulate(t_end=40.0 * (args.samples - 1) / 999, n_points=args.samples), args.snr, on="force", seed=args.seed)
     # a restoring force is odd about equilibrium: say so (odd powers only, no constant)
     template = cc.Equation("x'' + f1(x)*x' + f2(x) = F",
                            f1=cc.Neural(), f2=cc.Polynomial(degree=5, symmetry="odd"))
