@@ -143,3 +143,29 @@ def test_every_script_has_a_gallery_entry(name):
 def test_gallery_is_in_the_nav_and_the_index():
     assert "gallery.md" in (ROOT / "mkdocs.yml").read_text()
     assert "](gallery.md)" in (ROOT / "docs" / "index.md").read_text()
+
+
+# ------------------------------------------------------------------ the tutorial notebook
+
+
+def test_tutorial_notebook_runs(monkeypatch, tmp_path):
+    """examples/tutorial.ipynb executes top to bottom (its cells assert the curve errors and the
+    save/load round trip); the committed file keeps no outputs."""
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    pytest.importorskip("ipykernel")
+    path = EXAMPLES / "tutorial.ipynb"
+    nb = nbformat.read(path, as_version=4)
+    assert all(not c.get("outputs") for c in nb.cells if c.cell_type == "code")
+    # the kernel inherits the environment: this checkout's sources, one thread, and matplotlib's
+    # inline backend (the kernel's default, which needs no display) so that figures become outputs
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(ROOT / "src"), os.environ.get("PYTHONPATH")])))
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    monkeypatch.delenv("MPLBACKEND", raising=False)
+    nbclient.NotebookClient(nb, timeout=180, kernel_name="python3",
+                            resources={"metadata": {"path": str(tmp_path)}}).execute()
+    outputs = {i: c.outputs for i, c in enumerate(nb.cells) if c.cell_type == "code"}
+    html = [o for outs in outputs.values() for o in outs if "text/html" in o.get("data", {})]
+    assert html and "f1" in html[0]["data"]["text/html"]   # the model's _repr_html_
+    assert any("image/png" in o.get("data", {}) for outs in outputs.values() for o in outs)  # model.plot
+    assert "z**3" in str(outputs)
