@@ -219,3 +219,18 @@ def test_every_method_runs_through_the_cli(tmp_path, duffing_csv, method):
     f1_bound, f2_bound = BOUNDS[method]
     assert res["curve_rmse"]["f1"] < f1_bound and res["curve_rmse"]["f2"] < f2_bound, res["curve_rmse"]
     assert res["gain"] == pytest.approx(1.0, abs=0.01 if method == "sindy" else 1e-12)
+
+
+def test_every_option_of_every_command_has_help_text():
+    """Issue 24, item 5: --device, --no-figure, --quiet and others had no help text."""
+    import argparse
+
+    from charcurves.cli._parser import build_parser
+
+    parser = build_parser("test")
+    (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    missing = [f"{name} {a.option_strings or a.dest}" for name, p in sub.choices.items() for a in p._actions
+               if not a.help and "-h" not in a.option_strings]
+    assert missing == []
+    fit_help = sub.choices["fit"].format_help()
+    assert "torch device of the neural fits" in fit_help and "do not draw curves.png" in fit_help

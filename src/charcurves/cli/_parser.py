@@ -37,10 +37,11 @@ def build_parser(version: str) -> argparse.ArgumentParser:
 
     s = sub.add_parser("simulate", help="simulate a benchmark system to a CSV file (t,x,v,a,F; two-dof: "
                                         "t,x1,x2,v1,a1,v2,a2,F1,F2)")
-    s.add_argument("system", choices=SYSTEM_NAMES)
+    s.add_argument("system", choices=SYSTEM_NAMES, help="which system: " + ", ".join(SYSTEM_NAMES))
     s.add_argument("--out", required=True, help="output CSV file")
     s.add_argument("--snr", type=float, default=None, help="noise level in dB (default: no noise)")
-    s.add_argument("--noise-on", choices=["force", "state"], default="force")
+    s.add_argument("--noise-on", choices=["force", "state"], default="force",
+                   help="where the noise goes: the forcing F (default, the paper) or the position x (appendix F)")
     s.add_argument("--noise-reference", choices=["std", "rms"], default=None,
                    help="sigma of the clean signal: std (paper) or rms (authors' scripts, forcing)")
     s.add_argument("--seed", type=int, default=0, help=_SEED_HELP)
@@ -78,21 +79,21 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     f.add_argument("--basis", default=None, help="parametric basis, e.g. \"f1=z; f2=z, z**3\"")
     f.add_argument("--sr-engine", default=None, help="symbolic-regression engine: operon (default) or pysr")
     f.add_argument("--sr-generations", type=int, default=None, help="SR generations (iterations)")
-    f.add_argument("--sr-populations", type=int, default=None)
+    f.add_argument("--sr-populations", type=int, default=None, help="symbolic regression: independent populations (PySR islands; Operon restarts; default 1)")
     f.add_argument("--sr-max-size", type=int, default=None, help="largest expression size (default 20)")
     f.add_argument("--keep-sticking", action="store_true", help="fit samples where x' = 0 over a run too")
     f.add_argument("--time-col", default="t", help=_TIME_HELP)
-    f.add_argument("--x-col", default="x")
-    f.add_argument("--force-col", default="F")
+    f.add_argument("--x-col", default="x", help="the position column (default x)")
+    f.add_argument("--force-col", default="F", help="the forcing column (default F)")
     f.add_argument("--sample-rate", type=float, default=None, help=_RATE_HELP)
     f.add_argument("--rows", type=_rows, default=None, help="START:STOP rows to use")
     f.add_argument("--truth", default=None,
                    help=f"benchmark system ({', '.join(SYSTEM_NAMES)}) to compare the curves with")
-    f.add_argument("--truth-variant", default="paper")
+    f.add_argument("--truth-variant", default="paper", help="parameter set of --truth (default paper)")
     f.add_argument("--threads", type=int, default=None, help="torch threads (default: 1 per process)")
-    f.add_argument("--device", default="cpu")
-    f.add_argument("--no-figure", action="store_true")
-    f.add_argument("--quiet", action="store_true")
+    f.add_argument("--device", default="cpu", help="torch device of the neural fits: cpu (default) or cuda")
+    f.add_argument("--no-figure", action="store_true", help="do not draw curves.png")
+    f.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     f.add_argument("--objective", default=None, choices=["auto", "equation-error", "output-error"],
                    help="auto (default): equation error, then output error (the curves refitted to the free-run "
                         "simulation of the measured x) when the record has no derivative columns; equation-error; "
@@ -131,8 +132,8 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     v.add_argument("--rows", type=_rows, action="append", default=None,
                    help="START:STOP rows of a test segment (repeat for several; default: the whole file)")
     v.add_argument("--time-col", default="t", help=_TIME_HELP)
-    v.add_argument("--x-col", default="x")
-    v.add_argument("--force-col", default="F")
+    v.add_argument("--x-col", default="x", help="the position column (default x)")
+    v.add_argument("--force-col", default="F", help="the forcing column (default F)")
     v.add_argument("--sample-rate", type=float, default=None, help=_RATE_HELP)
     v.add_argument("--hold", default=None, help="linear, zoh or bandlimited (default: the model's refinement's, "
                                                 "else linear)")
@@ -140,9 +141,9 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     v.add_argument("--out", default=None, help="directory for validation.json and validation.png")
 
     d = sub.add_parser("demo", help="simulate Duffing at 20 dB, fit NN-CC+sym, write results")
-    d.add_argument("--out", default="charcurves-demo")
+    d.add_argument("--out", default="charcurves-demo", help="output directory (default charcurves-demo)")
     d.add_argument("--seed", type=int, default=0, help=_SEED_HELP)
-    d.add_argument("--threads", type=int, default=None)
+    d.add_argument("--threads", type=int, default=None, help="torch threads (default 1)")
 
     sel = sub.add_parser("select", help="model selection: run the three validation loops on candidate families")
     sel.add_argument("csv", nargs="+", help="CSV records of one system (other initial conditions or forcings)")
@@ -156,10 +157,10 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     sel.add_argument("--seed", type=int, default=0, help=_SEED_HELP)
     sel.add_argument("--derivatives", default="auto", help="auto, given, savgol, spline, spectral or fd")
     sel.add_argument("--threads", type=int, default=None, help="torch threads (default 1)")
-    sel.add_argument("--time-col", default="t")
-    sel.add_argument("--x-col", default="x")
-    sel.add_argument("--force-col", default="F")
-    sel.add_argument("--quiet", action="store_true")
+    sel.add_argument("--time-col", default="t", help="the time column (default t)")
+    sel.add_argument("--x-col", default="x", help="the position column (default x)")
+    sel.add_argument("--force-col", default="F", help="the forcing column (default F)")
+    sel.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
 
     b = sub.add_parser("benchmark", help="run the paper's study (sweeps, tables, figures) into a report")
     b.add_argument("--out", required=True, help="output directory (results.sqlite there makes reruns resume)")
@@ -183,7 +184,7 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     b.add_argument("--forward-cases", type=int, default=None, help="validation cases per model (default 2; --full: 10)")
     b.add_argument("--skip", default="", help="side studies to leave out: forward,lyapunov,miw,sensitivity,appendix-f")
     b.add_argument("--retry-failed", action="store_true", help="also rerun jobs stored as failed")
-    b.add_argument("--quiet", action="store_true")
+    b.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     return p
 
 
