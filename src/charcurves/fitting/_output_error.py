@@ -152,7 +152,7 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
         if "jump_log_eps" in sl:  # train with a width RK4 integrates; the sharp one comes back afterwards
             j = sl["jump_log_eps"].start
             restore[name] = np.full(theta_c.shape[0], -60.0)  # afterwards: the sharp step (Coulomb's sign)
-            theta_c[:, j] = _smooth_jump_raw(rf, prep_cols, fm, name, substeps, dt)
+            theta_c[:, j] = _smooth_jump_raw(rf, substeps, dt)
             frozen.append(j)
         param = rf.param if rf.param.decay_groups() or not settings.bayesian else _Ridge(rf.param)
         blocks.append(CurveBlock(name, param, col(rf.center), col(rf.half_width), col(rf.out_scale), col(rf.shift),
@@ -376,12 +376,10 @@ def _has_columns(record, positions) -> bool:
     return all(p in record.states for p in positions)
 
 
-def _smooth_jump_raw(rf, cols, fm, name, substeps, dt) -> float:
+def _smooth_jump_raw(rf, substeps, dt) -> float:
     """Raw width parameter of the narrowest jump fixed-step RK4 integrates stably: the jump acts as a
     damping mu / eps, and RK4 needs (dt / substeps) * mu / eps below ~2, so eps >= mu * h / 2 (in
     units of the curve's scaled argument), and at least 0.2 % of the argument's range."""
-    from ..curves import jump_log_eps  # noqa: F401  (the raw parameter is mapped by jump_log_eps)
-
     sl = rf.param.slices()
     mu = float(np.max(np.abs(rf.theta[:, sl["jump_height"]]))) * abs(rf.out_scale)
     h = dt / substeps

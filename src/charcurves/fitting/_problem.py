@@ -59,6 +59,8 @@ class LeastSquaresProblem:
 
     bayesian: bool = False
     decay_groups: str = "shared"
+    #: start the evidence from a decay scaled to the weights' size (output error; see _train)
+    scaled_initial_decay: bool = False
     # set by the subclasses (annotations only: no class attributes)
     y: torch.Tensor
     weight_decay: Any

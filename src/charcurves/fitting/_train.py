@@ -128,7 +128,7 @@ def _initial_decay(problem, theta, shape):
     e.g. 6e5 V^-2 on the Silverbox): there a fixed start would make the prior outweigh the data on
     the first step and drag the fit away."""
     lam = torch.full(shape, 1e-8, dtype=theta.dtype, device=theta.device)
-    if problem.decay_index is None or not getattr(problem, "scaled_initial_decay", False):
+    if problem.decay_index is None or not problem.scaled_initial_decay:
         return lam
     problem.set_weight_decay(torch.zeros(shape, dtype=theta.dtype, device=theta.device))
     with torch.no_grad():

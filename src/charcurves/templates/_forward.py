@@ -19,16 +19,10 @@ Other templates cannot be simulated this way and say so.
 from __future__ import annotations
 
 from .._errors import ConfigError
+from ._parse import show as _shown
 from ._structure import EquationTemplate
 
 __all__ = ["ForwardModel", "Signal"]
-
-
-def _shown(text) -> str:
-    """Internal derivative names as people write them: ``x__d2`` -> ``x''``."""
-    import re
-
-    return re.sub(r"(\w+?)__d(\d)", lambda m: m.group(1) + "'" * int(m.group(2)), str(text))
 
 
 class Signal:

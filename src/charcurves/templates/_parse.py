@@ -41,8 +41,9 @@ def display(sym_name: str) -> str:
 
 
 def show(expr) -> str:
+    """An expression with its internal derivative names as written (``3*x__d2**2`` -> ``3*x''**2``)."""
     text = str(expr)
-    return re.sub(r"\b(x\d*)__d([12])\b", lambda m: m.group(1) + "'" * int(m.group(2)), text)
+    return re.sub(r"\b(\w+?)__d(\d)\b", lambda m: m.group(1) + "'" * int(m.group(2)), text)
 
 
 def parse_side(text: str, where: str):
