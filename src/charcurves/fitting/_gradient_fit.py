@@ -163,33 +163,36 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
 
     K = len(records)
     KR = K * R
-    rep_ = lambda arr_list: np.repeat(np.stack(arr_list), R, axis=0)  # noqa: E731
     T = lambda arr: torch.as_tensor(arr, dtype=dtype, device=device)  # noqa: E731
-    so = np.repeat(np.array(scale_out), R)[:, None]
-    y = T(rep_([D["y"] for D in designs]) / so / np.repeat(np.array(g_est), R)[:, None])
-    F = T(rep_([D["F"] for D in designs]) / so)
-    w = T(rep_([r / np.sqrt(r.sum()) for r in rows_used]))
+
+    def rep_(arr_list):
+        """One row per (record, start): the records' rows repeated ``R`` times; a single record's
+        rows are a view (no copy: the data of a long record is held once, not once per start)."""
+        a = T(np.stack(arr_list))
+        return a.expand(R, -1) if K == 1 else a.repeat_interleave(R, dim=0)
+
+    y = rep_([D["y"] / so_ / g_ for D, so_, g_ in zip(designs, scale_out, g_est)])
+    F = rep_([D["F"] / so_ for D, so_ in zip(designs, scale_out)])
+    w = rep_([r / np.sqrt(r.sum()) for r in rows_used])
 
     from ._problem import BatchedProblem, CurveTerm
 
     terms = []
     for name in names:
         p = params[name]
-        c = np.repeat([s[name][0] for s in scales], R)[:, None]
-        h = np.repeat([s[name][1] for s in scales], R)[:, None]
-        z = (rep_([np.tile(D["args"][name], E) for D in designs]) - c) / h
+        z = rep_([(np.tile(D["args"][name], E) - s[name][0]) / s[name][1] for D, s in zip(designs, scales)])
         mults = [D["mult"][name] for D in designs]
-        mult = None if all(np.all(m == 1.0) for m in mults) else T(rep_(mults))
+        mult = None if all(np.all(m == 1.0) for m in mults) else rep_(mults)
         sym_pts = None
         if p.symmetry != "none" and p.symmetry_mode == "penalty":
             zs = [(np.linspace(D["args"][name].min(), D["args"][name].max(), preset.n_sym) - s[name][0]) / s[name][1]
                   for D, s in zip(designs, scales)]
-            sym_pts = T(np.repeat(np.stack(zs), R, axis=0))
-        terms.append(CurveTerm(p, T(z), mult, sym_pts))
+            sym_pts = rep_(zs)
+        terms.append(CurveTerm(p, z, mult, sym_pts))
     n_rows = E * designs[0]["n"]
     for cname in const_names:
         sig = rep_([D["const_signals"][cname] / s[cname] for D, s in zip(designs, sig_scale)])
-        terms.append(CurveTerm(const, T(np.ones((KR, n_rows))), T(sig), None))
+        terms.append(CurveTerm(const, torch.ones(1, n_rows, dtype=dtype, device=device).expand(KR, -1), sig, None))
     bias = E == 1 and bool(offsets)
     problem = BatchedProblem(terms, y, F, w, free_gain=template.free_gain, gain=template.gain,
                              gain_on=template.gain_on, bias=bias, lambda_sym=preset.lambda_sym, weight_decay=0.0,
@@ -206,7 +209,8 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
 
     theta, logs, log, total_loss = train_batched(problem, start_weights(seeds, R, draw).to(device), preset,
                                                  threads=threads, device=device, chunk_models=chunk_models,
-                                                 progress=progress, profile_jumps=bool(jumps))
+                                                 progress=progress, profile_jumps=bool(jumps),
+                                                 row_seeds=np.repeat(np.asarray(seeds, dtype=np.int64), R))
     decay = torch.cat([sub.decay_per_group(sub.K).to(theta.dtype) for _, sub, _ in logs])  # (KR, G)
     elapsed = time.perf_counter() - t_start
     theta = theta.double().cpu()
@@ -259,6 +263,8 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
             "ensemble_members": int(members.size),
             "adam_steps": log.adam_steps,
             "lm_iterations": log.lm_iterations,
+            **({"long_record": {"subset_samples": log.subset_samples, "refine_iterations": log.refine_iterations}}
+               if log.subset_samples else {}),
             "stopped_by": log.stopped_by,
             "interrupted": log.interrupted,
             "n_samples": int(mask.size),

@@ -32,6 +32,8 @@ import math
 
 import numpy as np
 
+from ._long_record import subset_indices
+
 __all__ = ["harmonic_test", "HARMONIC_F_THRESHOLD", "HARMONIC_MIN_GAIN", "HARMONIC_MIN_MISFIT", "MAX_HARMONICS", "HARMONIC_PERIODS"]
 
 #: F statistic above which a harmonic is significant. Measured on the paper's Duffing and
@@ -50,6 +52,8 @@ HARMONIC_MIN_MISFIT = 1e-2
 MAX_HARMONICS = 4
 #: Periods over the visited range that the search covers (low, high), and grid points per period.
 HARMONIC_PERIODS = (2.0, 100.0)
+#: rows the test looks at on a long record (a fixed stratified subset beyond this)
+HARMONIC_MAX_ROWS = 8192
 _GRID_PER_PERIOD = 4
 _SAMPLES_PER_PERIOD = 20
 
@@ -106,6 +110,14 @@ def harmonic_test(traj, template, syms: dict, candidates, jumps=()) -> dict[str,
         cols.append(D["F"])
         y = -D["y"]
     base = np.column_stack(cols)
+    mults = {c: np.broadcast_to(D["mult"][c], y.shape) for c in template.curve_names}
+    if y.size > HARMONIC_MAX_ROWS:
+        # a long record: the test on a fixed stratified subset of its rows (a few thousand samples
+        # detect any oscillation the thresholds accept; the cost of the periodogram grows with the rows)
+        keep = subset_indices(y.size, HARMONIC_MAX_ROWS, seed=0)
+        base, y = base[keep], y[keep]
+        scaled = {c: u[keep] for c, u in scaled.items()}
+        mults = {c: m[keep] for c, m in mults.items()}
     found: dict[str, list[float]] = {}
     while True:
         Q, _ = np.linalg.qr(base)
@@ -114,7 +126,7 @@ def harmonic_test(traj, template, syms: dict, candidates, jumps=()) -> dict[str,
         for cname in candidates:
             if len(found.get(cname, ())) >= MAX_HARMONICS:
                 continue
-            u, m, kinds = scaled[cname], D["mult"][cname], kinds_of[cname]
+            u, m, kinds = scaled[cname], mults[cname], kinds_of[cname]
             span = float(u.max() - u.min())
             if span <= 0:
                 continue
@@ -132,10 +144,10 @@ def harmonic_test(traj, template, syms: dict, candidates, jumps=()) -> dict[str,
         if float(r @ r) < HARMONIC_MIN_MISFIT * float(np.sum((y - y.mean()) ** 2)):
             break  # the smooth terms already hold the curve (a clean record: any residual is "significant")
         _, cname, w, step = best
-        w = _refine(Q, r, scaled[cname], D["mult"][cname], kinds_of[cname], w, step)
+        w = _refine(Q, r, scaled[cname], mults[cname], kinds_of[cname], w, step)
         if w in found.get(cname, ()):
             break
-        grown = np.column_stack([base, *_columns(kinds_of[cname], w, scaled[cname], D["mult"][cname])])
+        grown = np.column_stack([base, *_columns(kinds_of[cname], w, scaled[cname], mults[cname])])
         Q2, _ = np.linalg.qr(grown)
         r2 = y - Q2 @ (Q2.T @ y)
         if float(r2 @ r2) > (1.0 - HARMONIC_MIN_GAIN) * float(r @ r):

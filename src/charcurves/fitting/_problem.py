@@ -32,6 +32,11 @@ __all__ = ["CurveTerm", "BatchedProblem", "LeastSquaresProblem", "DECAY_GROUPS"]
 
 DECAY_GROUPS = ("shared", "per-curve", "per-layer")
 
+#: bytes of one chunk's Jacobian in the normal equations of long records
+CHUNK_BYTES = 32 * 2**20
+#: records up to this length keep each mirrored curve's input ``cat([u, -u])`` precomputed
+MIRROR_CACHE_SAMPLES = 16384
+
 
 @dataclasses.dataclass
 class CurveTerm:
@@ -43,8 +48,9 @@ class CurveTerm:
     sym_points: torch.Tensor | None = None  # (K, N_sym) scaled points for the penalty
 
     def __post_init__(self) -> None:
-        # exact-symmetry curves evaluate h(u) and h(-u) together; build that input once
-        mirror = getattr(self.curve, "uses_mirror", False)
+        # exact-symmetry curves evaluate h(u) and h(-u) together; build that input once (not on
+        # long records, which are evaluated in chunks that build their own)
+        mirror = getattr(self.curve, "uses_mirror", False) and self.u.shape[1] <= MIRROR_CACHE_SAMPLES
         self.u_both = torch.cat([self.u, -self.u], dim=1) if mirror else None
 
 
@@ -61,6 +67,8 @@ class LeastSquaresProblem:
     decay_groups: str = "shared"
     #: start the evidence from a decay scaled to the weights' size (output error; see _train)
     scaled_initial_decay: bool = False
+    #: parameters that stay fixed (a boolean mask over theta's columns), or None
+    frozen: torch.Tensor | None = None
     # set by the subclasses (annotations only: no class attributes)
     y: torch.Tensor
     weight_decay: Any
@@ -99,15 +107,32 @@ class LeastSquaresProblem:
         self.decay_group = group[decay].to(self.y.device) if use_decay else None  # (m,) group of each decayed weight
         self.set_weight_decay(self.weight_decay)
 
-    def refresh_decay_rows(self, theta: torch.Tensor, r: torch.Tensor, J: torch.Tensor) -> None:
-        """Update, in place, the residual and Jacobian rows of the weight decay (the last rows)."""
+    def normal_equations(self, theta: torch.Tensor):
+        """``(JtJ, Jtr, cost, data_cost)`` of every residual row but the weight decay's: JtJ
+        ``(K, P, P)``, Jtr ``(K, P)``, the sum of squares ``(K,)`` and that of the data rows alone
+        ``(K,)``. The decay's rows are added by :meth:`decay_terms`, so that a new decay needs no
+        new pass over the data. This generic version forms the whole Jacobian; problems over long
+        records override it to accumulate over chunks of samples."""
+        r, J = self.residuals_jacobian(theta)
+        if self.decay_index is not None:
+            m = self.decay_index.numel()
+            r, J = r[:, :-m], J[:, :-m]
+        Jt = J.transpose(1, 2)
+        return Jt @ J, (Jt @ r.unsqueeze(-1)).squeeze(-1), r.pow(2).sum(1), r[:, :self.n_data].pow(2).sum(1)
+
+    def decay_terms(self, theta: torch.Tensor):
+        """The weight decay's share of the normal equations: ``(w2, cost)`` with ``w2`` ``(K, m)``
+        the squared decay of each decayed weight (0 for frozen ones, whose Jacobian column is
+        zero), to be added to JtJ's diagonal and, times the weight, to Jtr; ``cost`` ``(K,)``."""
         idx = self.decay_index
         assert idx is not None  # called only when the problem has decay rows
-        m = idx.numel()
-        sq = self._sqrt_wd if self._sqrt_wd.dim() else self._sqrt_wd.expand(theta.shape[0], 1)
-        r[:, -m:] = sq * theta[:, idx]
-        rows = torch.arange(J.shape[1] - m, J.shape[1], device=J.device)
-        J[:, rows, idx] = sq.expand(-1, m)
+        K, m = theta.shape[0], idx.numel()
+        sq = self._sqrt_wd.expand(K, m) if self._sqrt_wd.dim() else self._sqrt_wd.expand(K, m)
+        w2 = sq * sq
+        cost = (w2 * theta[:, idx].pow(2)).sum(1)
+        if self.frozen is not None:
+            w2 = torch.where(self.frozen[idx].to(w2.device), torch.zeros_like(w2), w2)
+        return w2, cost
 
     def set_weight_decay(self, wd) -> None:
         """A float, one value per model ``(K,)``, or one per model and decay group ``(K, G)``."""
@@ -189,10 +214,27 @@ class BatchedProblem(LeastSquaresProblem):
         o = self.offsets[i]
         return theta[:, o : o + self.terms[i].curve.n_params]
 
-    def _base(self, theta: torch.Tensor) -> torch.Tensor:
+    def _base(self, theta: torch.Tensor, sl: slice | None = None) -> torch.Tensor:
+        y, F = (self.y, self.F) if sl is None else (self.y[:, sl], self.F[:, sl])
         if self.free_gain and self.gain_on == "force":
-            return self.gain_of(theta) * self.y + self.bias_of(theta) - self.F
-        return self.y + self.bias_of(theta) - self.gain_of(theta) * self.F
+            return self.gain_of(theta) * y + self.bias_of(theta) - F
+        return y + self.bias_of(theta) - self.gain_of(theta) * F
+
+    def _term_inputs(self, term: CurveTerm, sl: slice | None):
+        """A term's ``(u, u_both, multiplier)`` over the samples ``sl`` (all by default)."""
+        if sl is None:
+            return term.u, term.u_both, term.multiplier
+        u = term.u[:, sl]
+        return (u, None if term.u_both is None else torch.cat([u, -u], dim=1),
+                None if term.multiplier is None else term.multiplier[:, sl])
+
+    def _weighted_data(self, theta: torch.Tensor, sl: slice | None = None) -> torch.Tensor:
+        pred = self._base(theta, sl)
+        for i, term in enumerate(self.terms):
+            u, u_both, mult = self._term_inputs(term, sl)
+            f = term.curve.evaluate(self.block(theta, i), u, u_both)
+            pred = pred + (f if mult is None else mult * f)
+        return (self.weights if sl is None else self.weights[:, sl]) * pred
 
     def gain_of(self, theta: torch.Tensor) -> torch.Tensor:
         """The free coefficient: g (gain_on="acceleration") or h = 1/g (gain_on="force")."""
@@ -209,11 +251,7 @@ class BatchedProblem(LeastSquaresProblem):
 
     # ------------------------------------------------------------------ residuals
     def residuals(self, theta: torch.Tensor) -> torch.Tensor:
-        pred = self._base(theta)
-        for i, term in enumerate(self.terms):
-            f = term.curve.evaluate(self.block(theta, i), term.u, term.u_both)
-            pred = pred + (f if term.multiplier is None else term.multiplier * f)
-        parts = [self.weights * pred]
+        parts = [self._weighted_data(theta)]
         for i in self.penalised:
             parts.append(self._sym_residual(theta, i))
         if self.decay_index is not None:
@@ -228,24 +266,30 @@ class BatchedProblem(LeastSquaresProblem):
         s = -1.0 if term.curve.symmetry == "odd" else 1.0
         return math.sqrt(self.lambda_sym / n) * (both[:, :n] - s * both[:, n:])
 
-    def residuals_jacobian(self, theta: torch.Tensor):
-        K, N = self.y.shape
+    def _data_rows(self, theta: torch.Tensor, sl: slice | None = None):
+        """Weighted data residuals and their Jacobian over the samples ``sl`` (all by default)."""
+        y, F, w = (self.y, self.F, self.weights) if sl is None else (self.y[:, sl], self.F[:, sl], self.weights[:, sl])
+        K, N = y.shape
         J = theta.new_zeros(K, N, self.n_params)
-        pred = self._base(theta)
+        pred = self._base(theta, sl)
         for i, term in enumerate(self.terms):
-            f, Ji = term.curve.evaluate_jacobian(self.block(theta, i), term.u, term.u_both)
-            if term.multiplier is not None:
-                f = term.multiplier * f
-                Ji = term.multiplier.unsqueeze(-1) * Ji
+            u, u_both, mult = self._term_inputs(term, sl)
+            f, Ji = term.curve.evaluate_jacobian(self.block(theta, i), u, u_both)
+            if mult is not None:
+                f = mult * f
+                Ji = mult.unsqueeze(-1) * Ji
             pred = pred + f
             o = self.offsets[i]
             J[:, :, o : o + term.curve.n_params] = Ji
         if self.free_gain:
-            J[:, :, self.gain_index] = self.y if self.gain_on == "force" else -self.F
+            J[:, :, self.gain_index] = y if self.gain_on == "force" else -F
         if self.bias:
             J[:, :, self.bias_index] = 1.0
-        r = [self.weights * pred]
-        Js = [self.weights.unsqueeze(-1) * J]
+        return w * pred, w.unsqueeze(-1) * J
+
+    def _penalty_rows(self, theta: torch.Tensor):
+        K = theta.shape[0]
+        r, Js = [], []
         for i in self.penalised:
             term = self.terms[i]
             z = term.sym_points
@@ -259,6 +303,42 @@ class BatchedProblem(LeastSquaresProblem):
             Jp[:, :, o : o + term.curve.n_params] = c * (Ji[:, :n] - s * Ji[:, n:])
             r.append(c * (f[:, :n] - s * f[:, n:]))
             Js.append(Jp)
+        return r, Js
+
+    def chunk_samples(self) -> int:
+        """Samples per chunk of the normal equations: a chunk's Jacobian stays near 32 MB."""
+        per_sample = self.K * self.n_params * self.y.element_size()
+        return max(1024, int(CHUNK_BYTES // max(per_sample, 1)))
+
+    def _chunks(self):
+        N, c = self.n_data, self.chunk_samples()
+        return [None] if N <= c else [slice(a, min(a + c, N)) for a in range(0, N, c)]
+
+    def normal_equations(self, theta: torch.Tensor):
+        """Accumulated over chunks of samples, so that memory does not grow with the record."""
+        K, P = theta.shape
+        JtJ = theta.new_zeros(K, P, P)
+        g = theta.new_zeros(K, P)
+        data = theta.new_zeros(K)
+        for sl in self._chunks():
+            r, J = self._data_rows(theta, sl)
+            Jt = J.transpose(1, 2)
+            JtJ = JtJ + Jt @ J
+            g = g + (Jt @ r.unsqueeze(-1)).squeeze(-1)
+            data = data + r.pow(2).sum(1)
+        cost = data
+        for r, J in zip(*self._penalty_rows(theta)):
+            Jt = J.transpose(1, 2)
+            JtJ = JtJ + Jt @ J
+            g = g + (Jt @ r.unsqueeze(-1)).squeeze(-1)
+            cost = cost + r.pow(2).sum(1)
+        return JtJ, g, cost, data
+
+    def residuals_jacobian(self, theta: torch.Tensor):
+        K = theta.shape[0]
+        r0, J0 = self._data_rows(theta)
+        pr, pJ = self._penalty_rows(theta)
+        r, Js = [r0, *pr], [J0, *pJ]
         if self.decay_index is not None:
             m = self.decay_index.numel()
             Jd = theta.new_zeros(K, m, self.n_params)
@@ -268,8 +348,39 @@ class BatchedProblem(LeastSquaresProblem):
             Js.append(Jd)
         return torch.cat(r, dim=1), torch.cat(Js, dim=1)
 
+    def data_loss(self, theta: torch.Tensor) -> torch.Tensor:
+        """Sum of squared data residuals per model, ``(K,)``, over chunks of samples."""
+        chunks = self._chunks()
+        if chunks == [None]:
+            return self.residuals(theta)[:, :self.n_data].pow(2).sum(dim=1)
+        total = theta.new_zeros(theta.shape[0])
+        for sl in chunks:
+            total = total + self._weighted_data(theta, sl).pow(2).sum(dim=1)
+        return total
+
     def loss(self, theta: torch.Tensor) -> torch.Tensor:
         """Total loss per model, ``(K,)``."""
-        return self.residuals(theta).pow(2).sum(dim=1)
+        if self._chunks() == [None]:
+            return self.residuals(theta).pow(2).sum(dim=1)
+        total = self.data_loss(theta)
+        for i in self.penalised:
+            total = total + self._sym_residual(theta, i).pow(2).sum(dim=1)
+        if self.decay_index is not None:
+            total = total + (self._sqrt_wd * theta[:, self.decay_index]).pow(2).sum(dim=1)
+        return total
+
+    def sample_subset(self, idx: torch.Tensor) -> BatchedProblem:
+        """The same problem on the samples ``idx`` ``(K, n)`` (each model its own) only, each model's
+        used samples reweighted to a mean over the subset (the first stage of a fit on a long
+        record, see ``_long_record``)."""
+        take = lambda a: torch.gather(a, 1, idx)  # noqa: E731
+        used = (take(self.weights) > 0).to(self.y.dtype)
+        w = used / used.sum(dim=1, keepdim=True).clamp_min(1.0).sqrt()
+        terms = [CurveTerm(t.curve, take(t.u), None if t.multiplier is None else take(t.multiplier),
+                           t.sym_points) for t in self.terms]
+        return BatchedProblem(terms, take(self.y), take(self.F), w, free_gain=self.free_gain,
+                              gain=self.gain, gain_on=self.gain_on, bias=self.bias, lambda_sym=self.lambda_sym,
+                              weight_decay=self.weight_decay, bayesian=self.bayesian,
+                              decay_groups=self.decay_groups)
 
 

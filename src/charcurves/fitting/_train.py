@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     from ._problem import LeastSquaresProblem
 
 __all__ = ["TrainingLog", "train", "train_in_chunks", "train_with_preset", "chunk_log", "merge_logs",
-           "torch_threads", "start_weights"]
+           "torch_threads", "start_weights", "model_chunk"]
 
 
 @dataclasses.dataclass
@@ -31,6 +31,9 @@ class TrainingLog:
     stopped_by: str = ""
     interrupted: bool = False
     effective_parameters: list = dataclasses.field(default_factory=list)
+    #: long records (``_long_record``): the first stage's subset size and the refinement's LM iterations
+    subset_samples: int = 0
+    refine_iterations: int = 0
 
 
 def _adam(problem, theta, steps, lr, stop_loss, log, progress, holder, check_every=100):
@@ -78,7 +81,7 @@ def _adam(problem, theta, steps, lr, stop_loss, log, progress, holder, check_eve
     return theta.detach()
 
 
-def _evidence_update(problem, theta, JtJ, r):
+def _evidence_update(problem, theta, JtJ, data_cost):
     """MacKay's evidence approximation (Foresee & Hagan's Bayesian regularisation for LM).
 
     With E_D the raw sum of squared data residuals over N samples and E_W the squared norm of the
@@ -86,10 +89,10 @@ def _evidence_update(problem, theta, JtJ, r):
     beta = (N - gamma) / (2 E_D), where gamma = P_w - 2 alpha tr_w(H^-1) is the effective number
     of weights and H = 2 beta J_D^T J_D + 2 alpha I_w the Gauss-Newton Hessian. In the loss
     ||r||^2 + lambda ||w||^2 (r scaled by 1/sqrt(N)) this is lambda = alpha / (beta N).
-    ``JtJ`` and ``r`` are those LM already has at ``theta`` (decay rows included).
+    ``JtJ`` (decay rows included) and ``data_cost`` (the data rows' sum of squares) are those LM
+    already has at ``theta``.
     """
     K, P, _ = JtJ.shape
-    N = problem.n_data
     n_used = problem.n_used
     idx = problem.decay_index
     G = problem.n_decay_groups
@@ -100,7 +103,7 @@ def _evidence_update(problem, theta, JtJ, r):
     lam_param = lam @ masks  # (K, P)
     # data part of J^T J (in raw units): remove the decay rows' lambda * I_w, undo the 1/sqrt(N) scaling
     JtJ_data = (JtJ - torch.diag_embed(lam_param)) * n_used.view(K, 1, 1)
-    E_D = r[:, :N].pow(2).sum(1) * n_used
+    E_D = data_cost * n_used
     E_W = (theta.pow(2) @ masks.T).clamp_min(1e-12)  # (K, G)
     gamma_prev = problem.gamma if problem.gamma is not None else m_g.expand(K, G)
     beta = ((n_used - gamma_prev.sum(1)) / (2 * E_D)).clamp_min(1e-12)
@@ -132,7 +135,7 @@ def _initial_decay(problem, theta, shape):
         return lam
     problem.set_weight_decay(torch.zeros(shape, dtype=theta.dtype, device=theta.device))
     with torch.no_grad():
-        data = problem.residuals(theta)[:, :problem.n_data].pow(2).sum(1)  # (K,)
+        data = problem.normal_equations(theta)[3]  # (K,)
     G = problem.n_decay_groups
     masks = torch.zeros(G, theta.shape[1], dtype=theta.dtype, device=theta.device)
     masks[problem.decay_group, problem.decay_index] = 1.0
@@ -143,13 +146,30 @@ def _initial_decay(problem, theta, shape):
     return lam_g.min(dim=1).values if len(shape) == 1 else lam_g
 
 
-def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress, holder):
+def _with_decay(problem, theta, normal):
+    """The normal equations with the weight decay's rows added: ``(JtJ, Jtr, cost)``."""
+    JtJ, g, cost, _ = normal
+    if problem.decay_index is None:
+        return JtJ, g, cost
+    idx = problem.decay_index
+    w2, cost_d = problem.decay_terms(theta)
+    JtJ = JtJ.clone()
+    JtJ[:, idx, idx] += w2
+    g = g.clone()
+    g[:, idx] += w2 * theta[:, idx]
+    return JtJ, g, cost + cost_d
+
+
+def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress, holder, keep_decay=False):
+    """Batched LM on the normal equations (JtJ and Jtr accumulated by the problem, over chunks of
+    samples on long records). ``keep_decay`` continues from the problem's current weight decay
+    (the refinement of a long record, see ``_long_record``) instead of the evidence's start."""
     K, P = theta.shape
-    if problem.bayesian:
+    if problem.bayesian and not keep_decay:
         shape = (K,) if problem.n_decay_groups == 1 else (K, problem.n_decay_groups)
         problem.set_weight_decay(_initial_decay(problem, theta, shape))
-    r, J = problem.residuals_jacobian(theta)
-    cost = r.pow(2).sum(1)
+    normal = problem.normal_equations(theta)
+    JtJ, g, cost = _with_decay(problem, theta, normal)
     mu = torch.full((K,), 1e-3, dtype=theta.dtype, device=theta.device)
     active = cost > stop_loss
     stalls = torch.zeros(K, dtype=torch.long, device=theta.device)
@@ -157,8 +177,6 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
     for it in range(max_iter):
         if not bool(active.any()):
             break
-        JtJ = J.transpose(1, 2) @ J
-        g = (J.transpose(1, 2) @ r.unsqueeze(-1)).squeeze(-1)
         diag = torch.diagonal(JtJ, dim1=1, dim2=2)
         # Marquardt scaling with a floor so directions the data do not see stay damped
         scale = diag + 1e-9 * diag.max(dim=1, keepdim=True).values + 1e-12
@@ -168,27 +186,32 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
         ok_solve = info == 0
         step = torch.where(ok_solve.unsqueeze(-1) & active.unsqueeze(-1), step, torch.zeros_like(step))
         trial = theta + step
-        r_new = problem.residuals(trial)
-        cost_new = r_new.pow(2).sum(1)
+        cost_new = problem.loss(trial)
         accept = active & ok_solve & torch.isfinite(cost_new) & (cost_new < cost)
         rel = torch.where(accept, (cost - cost_new) / cost.clamp_min(1e-300), torch.zeros_like(cost))
+        # converged where the step is refused by rounding alone: the quadratic model predicts no
+        # decrease above the tolerance and none happened (MINPACK's ftol test); otherwise the
+        # damping would grow to its cap over some 30 refused steps that all leave theta as it is
+        predicted = -(2 * (g * step).sum(1) + (step.unsqueeze(1) @ JtJ @ step.unsqueeze(-1)).view(K))
+        settled = (~accept & ok_solve & (predicted <= tol * cost)
+                   & ((cost_new - cost).abs() <= tol * cost))
         theta = torch.where(accept.unsqueeze(-1), trial, theta)
         cost = torch.where(accept, cost_new, cost)
         if bool(accept.any()):
             # the Jacobian only changes where a step was taken: recompute it once, at the new point
-            r, J = problem.residuals_jacobian(theta)
+            normal = problem.normal_equations(theta)
+            JtJ, g, cost = _with_decay(problem, theta, normal)
         holder["theta"] = theta
         mu = torch.where(accept, (mu / 3).clamp_min(1e-12), (mu * 4).clamp_max(1e12))
-        stalls = torch.where(accept & (rel < tol), stalls + 1, torch.where(accept, 0, stalls))
+        stalls = torch.where((accept & (rel < tol)) | settled, stalls + 1, torch.where(accept, 0, stalls))
         if problem.bayesian and bool(accept.any()):
-            # re-estimate the decay of the models that moved; the objective changes with it,
-            # so the decay rows of the residuals and Jacobian are refreshed under the new value
-            lam_new, gamma = _evidence_update(problem, theta, J.transpose(1, 2) @ J, r)
+            # re-estimate the decay of the models that moved; the objective changes with it, so
+            # the decay's share of the normal equations is refreshed under the new value
+            lam_new, gamma = _evidence_update(problem, theta, JtJ, normal[3])
             lam_old = torch.as_tensor(problem.weight_decay, device=theta.device).expand_as(lam_new)
             moved = (accept & active).view(K, *([1] * (lam_new.dim() - 1)))
             problem.set_weight_decay(torch.where(moved, lam_new, lam_old))
-            problem.refresh_decay_rows(theta, r, J)  # only the decay rows depend on the decay
-            cost = r.pow(2).sum(1)
+            JtJ, g, cost = _with_decay(problem, theta, normal)
             log.effective_parameters = gamma.tolist()
         finished = (stalls >= 3) | (mu >= 1e12) | (cost < stop_loss)
         active = active & ~finished
@@ -211,8 +234,10 @@ def train(
     lm_tol: float,
     stop_loss: float,
     progress: Callable | None = None,
+    keep_decay: bool = False,
 ) -> tuple[torch.Tensor, TrainingLog]:
-    """Train ``theta0`` (``(K, P)``) on ``problem``; Ctrl-C keeps the best weights so far."""
+    """Train ``theta0`` (``(K, P)``) on ``problem``; Ctrl-C keeps the best weights so far.
+    ``keep_decay``: LM continues from the problem's weight decay (see ``_levenberg_marquardt``)."""
     log = TrainingLog()
     holder = {"theta": theta0}
     try:
@@ -221,7 +246,7 @@ def train(
         if lm_max_iter > 0:
             with torch.no_grad():
                 _levenberg_marquardt(
-                    problem, holder["theta"], lm_max_iter, lm_tol, stop_loss, log, progress, holder
+                    problem, holder["theta"], lm_max_iter, lm_tol, stop_loss, log, progress, holder, keep_decay
                 )
     except KeyboardInterrupt:
         log.interrupted = True
@@ -254,6 +279,15 @@ def start_weights(seeds, n_starts: int, draw) -> torch.Tensor:
                       for seed in seeds for r in range(n_starts)], dim=0)
 
 
+def model_chunk(preset: TrainingPreset, device, chunk_models: int | None) -> int:
+    """Models trained together: ``chunk_models`` (48 on a CPU, 4096 on a GPU by default), rounded
+    down to whole groups of ``n_starts``."""
+    if chunk_models is None:
+        chunk_models = 48 if torch.device(device).type == "cpu" else 4096
+    R = preset.n_starts
+    return max(R, (chunk_models // R) * R)
+
+
 def train_with_preset(problem, theta0, preset: TrainingPreset, *, device, chunk_models: int | None, progress=None):
     """Train every model start of ``problem`` with ``preset``'s optimiser settings, in chunks.
 
@@ -261,12 +295,7 @@ def train_with_preset(problem, theta0, preset: TrainingPreset, *, device, chunk_
     for the cache and memory stays bounded, with results identical to one batch (48 models on a
     CPU; a GPU wants the whole batch at once). Chunks hold whole groups of ``n_starts``.
     """
-    import torch
-
-    if chunk_models is None:
-        chunk_models = 48 if torch.device(device).type == "cpu" else 4096
-    R = preset.n_starts
-    chunk = max(R, (chunk_models // R) * R)
+    chunk = model_chunk(preset, device, chunk_models)
     return train_in_chunks(problem, theta0, chunk, progress=progress, adam_steps=preset.adam_steps,
                            adam_lr=preset.adam_lr, lm_max_iter=preset.lm_max_iter, lm_tol=preset.lm_tol,
                            stop_loss=preset.stop_loss)
@@ -319,6 +348,8 @@ def merge_logs(logs):
     out.interrupted = any(lg.interrupted for lg in logs)
     out.effective_parameters = [g for lg in logs for g in lg.effective_parameters]
     out.history = [h for lg in logs for h in lg.history]
+    out.subset_samples = max(lg.subset_samples for lg in logs)
+    out.refine_iterations = max(lg.refine_iterations for lg in logs)
     return out
 
 

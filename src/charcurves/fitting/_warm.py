@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
-from ._train import merge_logs, torch_threads, train_with_preset
+from ._long_record import is_long, train_long_record
+from ._train import merge_logs, model_chunk, torch_threads, train_with_preset
 
 if TYPE_CHECKING:
     from ._presets import TrainingPreset
@@ -42,16 +43,24 @@ def gain_estimate(design: dict, mask: np.ndarray, fallback: float) -> float:
 
 
 def train_batched(problem, theta0, preset: TrainingPreset, *, threads, device, chunk_models, progress,
-                  profile_jumps: bool = False):
+                  profile_jumps: bool = False, row_seeds=None):
     """Warm start, train with ``preset`` (Ctrl-C ends the whole call, see :func:`train_in_chunks`)
-    and, for jump-aware curves, profile the jump widths: ``(theta, logs, merged log, loss per row)``."""
+    and, for jump-aware curves, profile the jump widths: ``(theta, logs, merged log, loss per row)``.
+    Long records (given ``row_seeds``, each model row's seed) train in two stages: see ``_long_record``."""
 
-    if preset.warm_start:
+    long = row_seeds is not None and is_long(problem)
+    if preset.warm_start and not long:
         theta0 = warm_start(problem, theta0)
     with torch_threads(threads):
-        theta, logs = train_with_preset(problem, theta0, preset, device=device, chunk_models=chunk_models,
-                                        progress=progress)
-        if profile_jumps:
+        if long:
+            theta, logs = train_long_record(problem, theta0, preset, model_chunk(preset, device, chunk_models),
+                                            row_seeds, warm=warm_start if preset.warm_start else None,
+                                            profile=profile_jump_widths if profile_jumps else None,
+                                            progress=progress)
+        else:
+            theta, logs = train_with_preset(problem, theta0, preset, device=device, chunk_models=chunk_models,
+                                            progress=progress)
+        if profile_jumps and not long:  # a long record's widths are profiled between its two stages
             theta = profile_jump_widths(problem, theta)
         with torch.no_grad():
             total_loss = torch.cat([sub.loss(theta[s:s + sub.K]) for s, sub, _ in logs]).double().cpu().numpy()
@@ -70,8 +79,7 @@ def profile_jump_widths(problem, theta, n_grid: int = 33):
     terms = [(i, t) for i, t in enumerate(problem.terms) if "jump_log_eps" in _slices(t.curve)]
     if not terms:
         return theta
-    N = problem.y.shape[1]
-    data_loss = lambda th: problem.residuals(th)[:, :N].pow(2).sum(dim=1)  # noqa: E731
+    data_loss = problem.data_loss
     with torch.no_grad():
         best = theta.clone()
         best_loss = data_loss(warm_start(problem, best))
