@@ -21,12 +21,16 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from ._train import TrainingLog, train_in_chunks
+from ._train import TrainingLog, merge_logs, train_in_chunks
 
-__all__ = ["SUBSET_SAMPLES", "is_long", "subset_indices", "train_long_record"]
+__all__ = ["SUBSET_SAMPLES", "REFINE_MARGIN", "is_long", "subset_indices", "contenders", "train_long_record"]
 
 #: samples of the first stage's subset (and the length from which a record counts as long)
 SUBSET_SAMPLES = 4096
+#: starts within this relative loss of their record's best after the first stage are refined
+REFINE_MARGIN = 0.1
+#: starts whose first-stage residuals differ by less than this (rms, relative) are one fit
+SAME_FIT = 1e-3
 
 
 def is_long(problem) -> bool:
@@ -44,13 +48,46 @@ def subset_indices(n: int, n_sub: int, seed: int) -> np.ndarray:
     return np.clip(idx, 0, n - 1)
 
 
-def _merge(first: TrainingLog, second: TrainingLog, n_sub: int) -> TrainingLog:
+def _merge(first: TrainingLog, second: TrainingLog, n_sub: int, effective: list) -> TrainingLog:
     return TrainingLog(adam_steps=first.adam_steps, lm_iterations=first.lm_iterations,
                        history=first.history + [("refine", s, v) for _, s, v in second.history],
                        stopped_by=second.stopped_by or first.stopped_by,
                        interrupted=first.interrupted or second.interrupted,
-                       effective_parameters=second.effective_parameters or first.effective_parameters,
-                       subset_samples=n_sub, refine_iterations=second.lm_iterations)
+                       effective_parameters=effective, subset_samples=n_sub,
+                       refine_iterations=second.lm_iterations)
+
+
+def contenders(residuals: torch.Tensor, loss: torch.Tensor, n_starts: int, combine_tol: float):
+    """Which model rows to refine on all samples, and where each row's refined weights come from.
+
+    Per record, the starts whose first-stage ``loss`` is within ``REFINE_MARGIN`` (or 5 combine
+    tolerances, if more) of the record's best are contenders; starts further behind sit in another
+    local minimum, refining cannot bring them within the combine tolerance of the best, so they keep
+    their first-stage weights (and their whole-record loss keeps them out of the combination, as
+    before). Contenders that are the same fit (residual vectors within ``SAME_FIT`` of each other,
+    relative: several starts often reach one minimum) are refined once. Returns ``(rows, source)``:
+    the rows to refine, and for every row the row whose refined weights it takes (itself for a
+    refined row, -1 for a row that is not refined)."""
+    K = loss.shape[0]
+    L = torch.where(torch.isfinite(loss), loss, torch.full_like(loss, float("inf"))).view(-1, n_starts)
+    best = L.min(dim=1, keepdim=True).values
+    keep = (L <= best * (1.0 + max(REFINE_MARGIN, 5 * combine_tol))).flatten().tolist()
+    source = [-1] * K
+    rows: list[int] = []
+    norm = residuals.pow(2).mean(dim=1).sqrt()
+    for k in range(K):
+        if not keep[k]:
+            continue
+        rec = k // n_starts
+        for j in rows:
+            if j // n_starts == rec and float((residuals[k] - residuals[j]).pow(2).mean().sqrt()) \
+                    <= SAME_FIT * float(norm[j]):
+                source[k] = j
+                break
+        else:
+            rows.append(k)
+            source[k] = k
+    return torch.as_tensor(rows, dtype=torch.long, device=loss.device), source
 
 
 def train_long_record(problem, theta0, preset, chunk: int, row_seeds: Sequence[int], *, warm=None,
@@ -60,9 +97,10 @@ def train_long_record(problem, theta0, preset, chunk: int, row_seeds: Sequence[i
 
     ``row_seeds`` gives each model row its record's seed (rows of one record share a subset);
     ``warm`` and ``profile`` (functions ``(problem, theta) -> theta``: the least-squares start, the
-    jump widths' profile) act on the first stage's problem, before and after its training.
-    Ctrl-C during the first stage ends the call with its best weights (no refinement)."""
-    N = problem.n_data
+    jump widths' profile) act on the first stage's problem, before and after its training. The
+    second stage refines the :func:`contenders` only. Ctrl-C during the first stage ends the call
+    with its best weights (no refinement)."""
+    N, K = problem.n_data, problem.K
     idx = torch.as_tensor(np.stack([subset_indices(N, SUBSET_SAMPLES, s) for s in row_seeds]),
                           device=problem.y.device)
     small = problem.sample_subset(idx)
@@ -75,16 +113,38 @@ def train_long_record(problem, theta0, preset, chunk: int, row_seeds: Sequence[i
     if profile is not None and not interrupted:
         with torch.no_grad():
             theta = profile(small, theta)
-    if problem.bayesian and preset.lm_max_iter > 0:
-        # the first stage's decay, for a mean over all samples: lambda = alpha / (beta N)
-        decay = torch.cat([sub.decay_per_group(sub.K) for _, sub, _ in logs1])
-        ratio = (small.n_used / problem.n_used).to(decay.dtype).view(-1, 1)
-        decay = decay * ratio
-        problem.set_weight_decay(decay if problem.n_decay_groups > 1 else decay[:, 0])
-    if interrupted or preset.lm_max_iter == 0:
-        return theta, [(s, problem.subset(slice(s, s + sub.K)), _merge(lg, TrainingLog(), SUBSET_SAMPLES))
-                       for s, sub, lg in logs1]
-    theta, logs2 = train_in_chunks(problem, theta, chunk, progress=progress, adam_steps=0, adam_lr=preset.adam_lr,
-                                   lm_max_iter=preset.lm_max_iter, keep_decay=True, **options)
-    return theta, [(s, sub, _merge(lg1, lg2, SUBSET_SAMPLES))
-                   for (s, _, lg1), (_, sub, lg2) in zip(logs1, logs2)]
+    # the first stage's decay, for a mean over all samples: lambda = alpha / (beta N)
+    decay = torch.cat([sub.decay_per_group(sub.K) for _, sub, _ in logs1])
+    decay = decay * (small.n_used / problem.n_used).to(decay.dtype).view(-1, 1)
+    effective: list = []
+    for _, sub, lg in logs1:
+        effective += lg.effective_parameters or [None] * sub.K
+    second = TrainingLog()
+    if not interrupted and preset.lm_max_iter > 0:
+        with torch.no_grad():
+            sel, source = contenders(small.residuals(theta)[:, :small.n_data], small.loss(theta),
+                                     preset.n_starts, preset.combine_tol)
+        part = problem.subset(sel)
+        part.set_weight_decay(decay[sel] if problem.n_decay_groups > 1 else decay[sel, 0])
+        refined, logs2 = train_in_chunks(part, theta[sel], chunk, progress=progress, adam_steps=0,
+                                         adam_lr=preset.adam_lr, lm_max_iter=preset.lm_max_iter, keep_decay=True,
+                                         **options)
+        theta = theta.clone()
+        theta[sel] = refined
+        decay[sel] = torch.cat([sub.decay_per_group(sub.K) for _, sub, _ in logs2]).to(decay.dtype)
+        second = merge_logs([lg for _, _, lg in logs2])
+        rows = sel.tolist()
+        for s2, sub2, lg2 in logs2:  # a chunk whose LM took no step keeps the first stage's values
+            for j, g in enumerate(lg2.effective_parameters):
+                effective[rows[s2 + j]] = g
+        for k, j in enumerate(source):  # a start that reached a refined one's minimum takes its weights
+            if j >= 0 and j != k:
+                theta[k], decay[k], effective[k] = theta[j], decay[j], effective[j]
+    problem.set_weight_decay(decay if problem.n_decay_groups > 1 else decay[:, 0])
+    out = []
+    for s, sub, lg in logs1:
+        full = problem.subset(slice(s, s + sub.K))
+        out.append((s, full, _merge(lg, second, SUBSET_SAMPLES, effective[s:s + sub.K])))
+    assert sum(f.K for _, f, _ in out) == K
+    return theta, out
+
