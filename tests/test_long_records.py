@@ -123,3 +123,21 @@ def test_two_stage_fit_reaches_the_whole_record_optimum(monkeypatch, long_duffin
     for name in ("f1", "f2"):
         z = two.curves[name].grid(41)
         assert np.max(np.abs(two.curves[name](z) - one.curves[name](z))) < 0.05 * errs[name], name
+
+
+def test_batched_adam_is_torch_adam_bit_for_bit():
+    from charcurves.fitting._train import BatchedAdam
+
+    g = torch.Generator().manual_seed(0)
+    A = torch.randn(4, 7, 7, generator=g, dtype=torch.float64)
+    b = torch.randn(4, 7, generator=g, dtype=torch.float64)
+    start = torch.randn(4, 7, generator=g, dtype=torch.float64)
+    ours, ref = start.clone().requires_grad_(True), start.clone().requires_grad_(True)
+    opt_ours, opt_ref = BatchedAdam(ours, lr=1e-2), torch.optim.Adam([ref], lr=1e-2)
+    for _ in range(60):
+        for p, opt in ((ours, opt_ours), (ref, opt_ref)):
+            opt.zero_grad(set_to_none=True)
+            ((A @ p.unsqueeze(-1)).squeeze(-1) - b).pow(2).sum().backward()
+            opt.step()
+    assert torch.equal(ours.detach(), ref.detach())
+    assert not torch.equal(ours.detach(), start)

@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     from ._problem import LeastSquaresProblem
 
 __all__ = ["TrainingLog", "train", "train_in_chunks", "train_with_preset", "chunk_log", "merge_logs",
-           "torch_threads", "start_weights", "model_chunk"]
+           "torch_threads", "start_weights", "model_chunk", "BatchedAdam"]
 
 
 @dataclasses.dataclass
@@ -36,9 +36,38 @@ class TrainingLog:
     refine_iterations: int = 0
 
 
+class BatchedAdam:
+    """Adam (Kingma & Ba 2015) on one ``(K, P)`` tensor: the update of ``torch.optim.Adam`` with its
+    defaults (betas 0.9, 0.999, eps 1e-8, no weight decay), written out in its single-tensor form
+    and bitwise equal to it on a CPU (tested). ``torch.optim`` imports ``torch._dynamo`` on first
+    use, about 1 s of a 1000-sample fit's 3-4 s process; this loop needs none of its machinery."""
+
+    def __init__(self, param: torch.Tensor, lr: float, betas=(0.9, 0.999), eps: float = 1e-8):
+        self.param, self.lr, self.betas, self.eps = param, float(lr), betas, float(eps)
+        self.exp_avg = torch.zeros_like(param, memory_format=torch.preserve_format)
+        self.exp_avg_sq = torch.zeros_like(param, memory_format=torch.preserve_format)
+        self.steps = 0
+
+    @torch.no_grad()
+    def step(self) -> None:
+        grad = self.param.grad
+        if grad is None:
+            return
+        beta1, beta2 = self.betas
+        self.steps += 1
+        self.exp_avg.lerp_(grad, 1 - beta1)
+        self.exp_avg_sq.mul_(beta2).addcmul_(grad, grad, value=1 - beta2)
+        step_size = self.lr / (1 - beta1**self.steps)
+        denom = (self.exp_avg_sq.sqrt() / (1 - beta2**self.steps) ** 0.5).add_(self.eps)
+        self.param.addcdiv_(self.exp_avg, denom, value=-step_size)
+
+    def zero_grad(self, set_to_none: bool = True) -> None:
+        self.param.grad = None
+
+
 def _adam(problem, theta, steps, lr, stop_loss, log, progress, holder, check_every=100):
     theta = theta.clone().requires_grad_(True)
-    opt = torch.optim.Adam([theta], lr=lr)
+    opt = BatchedAdam(theta, lr=lr)
     done = torch.zeros(theta.shape[0], dtype=torch.bool, device=theta.device)
     # a model whose loss turns non-finite goes back to its last finite weights and stops there
     diverged = torch.zeros_like(done)
