@@ -73,6 +73,7 @@ class LeastSquaresProblem:
     y: torch.Tensor
     weight_decay: Any
     n_params: int
+    n_data: int
     decay_index: torch.Tensor | None
     decay_group: torch.Tensor | None
 
@@ -106,6 +107,10 @@ class LeastSquaresProblem:
         self.n_decay_groups = len(parts)
         self.decay_group = group[decay].to(self.y.device) if use_decay else None  # (m,) group of each decayed weight
         self.set_weight_decay(self.weight_decay)
+
+    def residuals_jacobian(self, theta: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Residuals ``(K, R)`` and their Jacobian ``(K, R, P)``, the decay's rows last."""
+        raise NotImplementedError
 
     def normal_equations(self, theta: torch.Tensor):
         """``(JtJ, Jtr, cost, data_cost)`` of every residual row but the weight decay's: JtJ
