@@ -127,13 +127,39 @@ def test_parser_fuzz_never_tracebacks(parts):
         assert isinstance(t, EquationTemplate) and t.curve_names
 
 
-@settings(max_examples=200, deadline=None)
-@given(st.text(max_size=60))
-def test_parser_fuzz_arbitrary_text(text):
+def _check_parse(text):
+    """Either a CharCurvesError whose message is one non-empty line, or a template with curves."""
     try:
-        parse_equation(text)
-    except CharCurvesError:
-        pass
+        t = parse_equation(text)
+    except CharCurvesError as exc:
+        message = str(exc)
+        assert message.strip(), f"empty message for {text!r}"
+        assert len(message.splitlines()) == 1, f"multi-line message for {text!r}: {message!r}"
+        return None
+    assert isinstance(t, EquationTemplate) and t.curve_names, text
+    return t
+
+
+#: arbitrary text, and a valid equation between whitespace or with arbitrary text after it (so that
+#: both branches of the check run: about a third of the inputs parse)
+_SPACE = st.text(" \t\n", max_size=3)
+_TEXT = st.one_of(st.text(max_size=60),
+                  st.builds(lambda a, b: a + "x'' + f1(x') + f2(x) = F" + b, _SPACE,
+                            st.one_of(_SPACE, st.text(max_size=8))))
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_TEXT)
+def test_parser_fuzz_arbitrary_text(text):
+    _check_parse(text)
+
+
+def test_parser_fuzz_check_can_fail_and_can_pass():
+    """The fuzz check above asserts something: a valid equation passes it with its curves, and
+    text with control characters and line breaks still gets a one-line message."""
+    assert _check_parse("x'' + f1(x') + f2(x) = F").curve_names == ("f1", "f2")
+    for text in ("", "\n", "x'' + f1(x)\n= F + \n\r", "x''\r+ f1(\u2028x) = F", "\x00", "f1(x) = f1(x)"):
+        assert _check_parse(text) is None, text
 
 
 # ---------------------------------------------------------------------------------- fitting

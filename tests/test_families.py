@@ -49,6 +49,17 @@ def _fit(system, record, method, **kw):
     return CharacteristicCurves(family=system.family, method=method, random_state=0, threads=1, **kw).fit(record).model_
 
 
+#: (f1, f2) normalised-RMSE bounds per method on the 25 dB van der Pol record. Measured (issue 25) over
+#: noise seeds 0-5 x fit seeds 0, 1 (12 fits each), worst f1 / f2: nn-cc 6.00e-3 / 9.04e-4,
+#: parametric 2.06e-3 / 1.10e-3, poly-cc 7.01e-3 / 1.70e-3, sindy-cc 7.01e-3 / 1.70e-3,
+#: nn-cc+sym 6.10e-3 / 8.22e-4, sindy-cc+sym 6.31e-3 / 1.22e-3 (the test's noise seed 0 is the worst
+#: or within 12 % of it everywhere). Each bound is at most 1.5 times its worst measured value. Wrong
+#: models miss by far more: f1 declared odd (it is even) gives f1 1.08; a basis or a polynomial
+#: without the cubic of f2 gives f2 0.25.
+VDP_BOUNDS = {"nn-cc": (9e-3, 1.3e-3), "parametric": (3e-3, 1.6e-3), "poly-cc": (1e-2, 2.5e-3),
+              "sindy-cc": (1e-2, 2.5e-3), "nn-cc+sym": (9e-3, 1.2e-3), "sindy-cc+sym": (9e-3, 1.8e-3)}
+
+
 @pytest.mark.parametrize("method, kw", [("nn-cc", {}), ("parametric", {}), ("poly-cc", {}), ("sindy-cc", {}),
                                         ("nn-cc+sym", {"symmetry": "f1=none,f2=odd"}),
                                         ("sindy-cc+sym", {"symmetry": "f1=even,f2=odd"})])
@@ -56,11 +67,12 @@ def test_position_damping_recovers_van_der_pol_curves_at_25db(vdp, method, kw):
     s, _, noisy = vdp
     model = _fit(s, noisy, method, **kw)
     errs = {k: nrmse(c, s.true_curves()[k]) for k, c in model.curves.items()}
-    assert errs["f1"] <= 0.05 and errs["f2"] <= 0.05, errs
+    f1_bound, f2_bound = VDP_BOUNDS[method]
+    assert errs["f1"] <= f1_bound and errs["f2"] <= f2_bound, errs
     # appendix A.2: strictly unique; with odd f2 no curve carries a constant, so the equation gets one
     assert model.result_dict()["gauge"] == "none (no constant to trade)"
-    if kw:
-        assert abs(model.offset) < 0.02
+    if kw:  # the true constant is 0; measured |offset| at most 2.6e-3 over the same 12 fits
+        assert abs(model.offset) < 4e-3
     assert model.curves["f1"].argument == "x" and model.curves["f2"].argument == "x"
 
 

@@ -165,7 +165,8 @@ def warm_start(problem, theta0):
                 rows[:, r, c] = _EVEN_WARM_RIDGE * A[:, :, c].norm(dim=1)
             A = torch.cat([A, rows], dim=1)
             target = torch.cat([target, target.new_zeros(target.shape[0], len(guarded))], dim=1)
-        # gelsd: the default gelsy gives different answers on identical inputs (found in issue 25)
+        # gelsd, not the default gelsy: torch hands gelsy an uninitialised column-pivot array (jpvt),
+        # which LAPACK reads on entry, so its answer followed leftover heap contents (issue 25)
         sol = torch.linalg.lstsq(A, target.unsqueeze(-1), driver="gelsd" if A.device.type == "cpu" else "gels"
                                  ).solution.squeeze(-1)
         theta[:, idx] = sol.to(theta.dtype)
