@@ -141,3 +141,39 @@ def test_benchmark_runs_on_the_cluster_named_by_ray_address(cluster, tmp_path, m
         (row,) = store.rows()
     assert row["extra"]["ray_node"] == worker_node and (out / row["extra"]["model_path"] / "model.json").is_file()
     assert not ray.is_initialized()
+
+
+def test_select_on_the_cluster_gives_the_report_of_a_selection_here(cluster, tmp_path, monkeypatch, capsys):
+    """Issue 25: `charcurves select --address` (and RAY_ADDRESS) fits every family's ensembles as Ray
+    tasks on the cluster; the models come back as files, and the loops see the numbers of a run here."""
+    import json
+
+    from charcurves.cli import main
+    from charcurves.data import corrupt
+    from charcurves.selection import select_family
+    from charcurves.systems import get_system
+
+    c, _ = cluster
+    system = get_system("van-der-pol")
+    recs = [corrupt(system.simulate(x0=x0), 30.0, seed=s) for s, x0 in ((0, 1.0), (1, -0.5))]
+    args = dict(method="poly-cc", n_members=3, all_families=True, all_loops=True, random_state=3)
+    here = select_family(recs, ["separable", "position-damping"], **args)
+    paths = []
+    for k, rec in enumerate(recs):
+        paths.append(str(tmp_path / f"r{k}.csv"))
+        rec.to_csv(paths[-1])
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    code = main(["select", *paths, "--method", "poly-cc", "--members", "3", "--all", "--seed", "3",
+                 "--address", c.address, "--out", str(tmp_path / "sel"), "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    assert not ray.is_initialized()
+    there = json.loads((tmp_path / "sel" / "selection.json").read_text())
+    assert there["accepted"] == here.accepted == "position-damping"
+    assert len(there["families"]) == 2
+    for mine, theirs in zip(here.to_dict()["families"], there["families"]):
+        assert mine["verdict"] == theirs["verdict"] and mine["rejected_by"] == theirs["rejected_by"]
+        for loop in ("inner", "middle", "outer"):
+            a, b = mine[loop]["figures"], theirs[loop]["figures"]
+            for key, value in a.items():
+                if isinstance(value, float):
+                    assert b[key] == pytest.approx(value, rel=1e-9, abs=1e-12), (mine["family"], loop, key)

@@ -61,7 +61,13 @@ def cmd_report(a) -> int:
 def cmd_select(a) -> int:
     from ..selection._cli import run_select
 
-    return run_select(a, say=say, check_out=make_out_dir)
+    address = ray_address(a)
+    fit = None
+    if address is not None:  # every family's ensembles as Ray tasks on the cluster
+        from ..experiments import ray_ensemble_fitter
+
+        fit = ray_ensemble_fitter(address, threads=1 if a.threads is None else a.threads)
+    return run_select(a, say=say, check_out=make_out_dir, fit=fit)
 
 
 def cmd_validate(a) -> int:

@@ -161,6 +161,9 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     sel.add_argument("--x-col", default="x", help="the position column (default x)")
     sel.add_argument("--force-col", default="F", help="the forcing column (default F)")
     sel.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    sel.add_argument("--address", default=None,
+                     help="a Ray cluster (e.g. auto or ray://head:10001; default: RAY_ADDRESS if set): every "
+                          "family's ensembles are fitted there at once, one task per family")
 
     b = sub.add_parser("benchmark", help="run the paper's study (sweeps, tables, figures) into a report")
     b.add_argument("--out", required=True, help="output directory (results.sqlite there makes reruns resume)")

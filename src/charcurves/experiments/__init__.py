@@ -8,6 +8,7 @@ ResultsStore(path)                         SQLite rows, completed_keys(), to_dat
 make_validation_cases(system, n, seed=)    random conditions whose true trajectory stays in the box
 evaluate_forward(model, system, cases)     t_sep (ε = 0.2, censored) and RMSE[x] per case
 run_benchmark(out_dir, ...)                the paper's study: sweeps, tables, figures, report.md/.html
+ray_ensemble_fitter(address)               select_family's ensemble fits as Ray tasks on a cluster
 
 Examples
 --------
@@ -19,6 +20,7 @@ Examples
 
 from ._benchmark import BenchmarkResult as BenchmarkResult
 from ._benchmark import run_benchmark as run_benchmark
+from ._remote import ray_ensemble_fitter as ray_ensemble_fitter
 from ._runner import Job as Job
 from ._runner import RunSettings as RunSettings
 from ._runner import run_unit as run_unit
@@ -50,6 +52,7 @@ from ._validation import training_box as training_box
 
 __all__ = [
     "BenchmarkResult",
+    "ray_ensemble_fitter",
     "CaseResult",
     "EXECUTORS",
     "ForwardEvaluation",

@@ -7,6 +7,8 @@ worker on another machine never needs the driver's disk).
 
 from __future__ import annotations
 
+import contextlib
+
 import math
 import os
 import sys
@@ -17,7 +19,8 @@ from typing import Any
 from .._errors import ConfigError
 from ._runner import RunSettings, failed_rows, init_worker, run_unit
 
-__all__ = ["Progress", "StopSignals", "SweepInterrupted", "run_pool", "run_ray", "ray_address"]
+__all__ = ["Progress", "StopSignals", "SweepInterrupted", "run_pool", "run_ray", "ray_address", "ray_session",
+           "cancel_all"]
 
 
 class SweepInterrupted(KeyboardInterrupt):
@@ -199,6 +202,30 @@ def run_ray(units, settings: RunSettings, num_cpus: int | None, address: str | N
     """Run the units as Ray tasks (one CPU each). With ``address`` (or ``RAY_ADDRESS``) on that
     cluster, whose size is its own (no ``num_cpus``); else on a private Ray instance of ``num_cpus``.
     A Ray already initialised in this process is used as it is."""
+    with ray_session(address, num_cpus, init_kwargs) as ray:
+        task = ray.remote(num_cpus=1, max_retries=0)(_ray_unit)
+        pending = {task.remote(unit, settings): unit for unit in units}
+        try:
+            _drain_ray(ray, pending, consume)
+        except BaseException:
+            cancel_all(ray, pending)
+            raise
+
+
+def cancel_all(ray, refs) -> None:
+    """Cancel queued and running tasks; a running one's result is lost."""
+    for ref in refs:
+        try:
+            ray.cancel(ref, force=True)
+        except Exception:  # noqa: BLE001 - already finished or its worker gone
+            pass
+
+
+@contextlib.contextmanager
+def ray_session(address: str | None, num_cpus: int | None = None, init_kwargs: Mapping[str, Any] | None = None):
+    """The ``ray`` module, connected: to the cluster at ``address`` (or ``RAY_ADDRESS``), whose size is
+    its own (no ``num_cpus``), else to a private Ray instance of ``num_cpus``; a Ray already
+    initialised in this process is used as it is. Disconnects (or stops the private instance) on exit."""
     try:
         import ray
     except ImportError:
@@ -225,17 +252,7 @@ def run_ray(units, settings: RunSettings, num_cpus: int | None, address: str | N
             ray.init(**kw)
         owned = True
     try:
-        task = ray.remote(num_cpus=1, max_retries=0)(_ray_unit)
-        pending = {task.remote(unit, settings): unit for unit in units}
-        try:
-            _drain_ray(ray, pending, consume)
-        except BaseException:
-            for ref in pending:  # queued and running tasks; a running one's row is lost and reruns on resume
-                try:
-                    ray.cancel(ref, force=True)
-                except Exception:  # noqa: BLE001 - already finished or its worker gone
-                    pass
-            raise
+        yield ray
     finally:
         if owned:
             ray.shutdown()  # disconnects from a cluster; stops a private instance

@@ -12,7 +12,7 @@ from .._errors import ConfigError
 __all__ = ["run_select"]
 
 
-def run_select(a, *, say, check_out) -> int:
+def run_select(a, *, say, check_out, fit=None) -> int:
     """Run the family search for the parsed command line ``a``; 0 whether or not a family is accepted."""
     from ..data import Trajectory
     from ..templates import get_template, read_record
@@ -40,7 +40,7 @@ def run_select(a, *, say, check_out) -> int:
     report = select_family(records, families, method=a.method, n_members=a.members, snr_db=a.snr,
                            all_families=a.all, all_loops=a.all, random_state=a.seed,
                            threads=1 if a.threads is None else a.threads, derivatives=a.derivatives,
-                           progress=None if a.quiet else (lambda text: say(f"  {text}")))
+                           progress=None if a.quiet else (lambda text: say(f"  {text}")), fit=fit)
     say(report.table())
     if a.out is not None:
         doc = report.to_dict()

@@ -74,7 +74,7 @@ def select_family(trajectories: Sequence, families: Sequence[str] = DEFAULT_FAMI
                   n_members: int = 6, snr_db: float | None = None, inner_factor: float = INNER_FACTOR,
                   middle_threshold: float = MIDDLE_THRESHOLD, outer_fraction: float = OUTER_FRACTION,
                   separation_eps: float = SEPARATION_EPS, all_families: bool = False, all_loops: bool = False,
-                  random_state: int = 0, threads: int | None = 1, progress=None,
+                  random_state: int = 0, threads: int | None = 1, progress=None, fit=None,
                   **estimator_params) -> SelectionReport:
     """Run the three loops on candidate families, simplest first; accept the first that passes.
 
@@ -101,6 +101,12 @@ def select_family(trajectories: Sequence, families: Sequence[str] = DEFAULT_FAMI
     threads : int, optional
     progress : callable, optional
         ``progress(text)`` after each family.
+    fit : callable, optional
+        ``fit(estimators, trajectories, n_members) -> [ensembles of each estimator]``: where the
+        bootstrap ensembles are fitted. By default here, family by family, stopping at the accepted
+        one; a given ``fit`` (e.g. :func:`charcurves.experiments.ray_ensemble_fitter`, on a Ray
+        cluster) gets every family's estimator at once, so that the families fit in parallel (the
+        families after the accepted one are fitted but, without ``all_families``, not tested).
     **estimator_params
         Further CharacteristicCurves settings (gauge, preset, derivatives...).
 
@@ -125,17 +131,26 @@ def select_family(trajectories: Sequence, families: Sequence[str] = DEFAULT_FAMI
     split = len(trajectories) == 1
     if split:
         trajectories = split_record(trajectories[0], 2)
+    estimators = [CharacteristicCurves(family=family, method=method, random_state=random_state, threads=threads,
+                                       **estimator_params) for family in families]
+    fitted, fit_each = None, 0.0
+    if fit is not None:
+        t0 = time.perf_counter()
+        fitted = list(fit(estimators, trajectories, n_members))
+        if len(fitted) != len(estimators):
+            raise ConfigError(f"the ensemble fitter returned {len(fitted)} results for {len(estimators)} families")
+        fit_each = (time.perf_counter() - t0) / len(estimators)
     rows, accepted = [], None
-    for family in families:
+    for i, family in enumerate(families):
         row: dict[str, Any] = {"family": family, "verdict": "not tested", "rejected_by": None}
         if accepted is not None and not all_families:
             rows.append(row)
             continue
         t0 = time.perf_counter()
-        est = CharacteristicCurves(family=family, method=method, random_state=random_state, threads=threads,
-                                   **estimator_params)
-        ensembles = fit_ensembles(est, trajectories, n_members, kind="bootstrap")
-        row["fit_seconds"] = time.perf_counter() - t0
+        est = estimators[i]
+        ensembles = (fitted[i] if fitted is not None else
+                     fit_ensembles(est, trajectories, n_members, kind="bootstrap"))
+        row["fit_seconds"] = fit_each if fitted is not None else time.perf_counter() - t0
         loops = [
             ("inner", lambda: inner_loop([e.point for e in ensembles], [e.record for e in ensembles],
                                          factor=inner_factor, snr_db=snr_db)),
