@@ -40,7 +40,14 @@ SYMMETRY_NAMES = ("none", "odd", "even")
 
 
 def normalise_symmetry(value, owner: str) -> str:
-    """``None``/"none"/"odd"/"even" -> "none"/"odd"/"even"; anything else is a ConfigError."""
+    """``None``/"none"/"odd"/"even" -> "none"/"odd"/"even"; anything else is a ConfigError.
+
+    Examples
+    --------
+    >>> from charcurves.curves import normalise_symmetry
+    >>> normalise_symmetry(None, "Polynomial"), normalise_symmetry(" Odd ", "Polynomial")
+    ('none', 'odd')
+    """
     if value is None:
         return "none"
     text = str(value).strip().lower()
@@ -55,6 +62,15 @@ class AbstractCurve(abc.ABC):
     Subclasses store their settings in ``__init__`` (named like the parameters, nothing
     computed), check them in :meth:`check`, and implement :meth:`scaling`,
     :meth:`parametrisation` and :meth:`fitted`.
+
+    Examples
+    --------
+    >>> from charcurves.curves import AbstractCurve, Neural, Polynomial
+    >>> curve = Polynomial(degree=5)
+    >>> isinstance(curve, AbstractCurve), curve.kind, isinstance(Neural(), AbstractCurve)
+    (True, 'linear', True)
+    >>> curve.set_params(symmetry="odd").get_params()
+    {'degree': 5, 'symmetry': 'odd', 'rescaling': 'minmax', 'basis': None, 'expand_tol': 1e-09}
     """
 
     #: "neural" (trained by gradient), "linear" (least squares; also trainable by gradient) or
@@ -138,6 +154,25 @@ class LinearCurve(AbstractCurve):
     :meth:`fitted` (default a :class:`LinearFittedCurve`, which saves the representation's
     parameters and the coefficients; register the class with :func:`register_curve` to load it).
     Constants are not features: the template adds one where a curve must carry a constant.
+
+    Examples
+    --------
+    >>> import torch
+    >>> import charcurves as cc
+    >>> from charcurves.curves import LinearCurve, Polynomial
+    >>> from charcurves.systems import get_system
+    >>> from charcurves.templates import Separable
+    >>> class Cubic(LinearCurve):  # f(u) = c1 u + c3 u**3, u = z / max|z|
+    ...     def __init__(self):
+    ...         pass
+    ...     def features(self, u):
+    ...         return torch.stack([u, u**3], dim=-1)
+    >>> Cubic().n_features(), Cubic().pinned_at_zero
+    (2, True)
+    >>> template = Separable(f1=Polynomial(degree=1), f2=Cubic())
+    >>> model = cc.CharacteristicCurves(template=template).fit(get_system("duffing").simulate()).model_
+    >>> [round(float(model.curves["f2"](x)), 6) for x in (1.0, 2.0)]  # x**3 - x
+    [0.0, 6.0]
     """
 
     kind = "linear"
@@ -194,6 +229,17 @@ class LinearParametrisation:
     (parameter slices under Bayesian weight decay, with labels), ``linear_parts(theta, u, u_both)``
     (parameters that enter linearly and their columns, for least-squares starts),
     ``pinned_at_zero``, ``symmetry``, ``symmetry_mode``, ``exact_symmetry``.
+
+    Examples
+    --------
+    >>> import torch
+    >>> from charcurves.curves import Basis, LinearParametrisation
+    >>> param = LinearParametrisation(Basis("z, z**3"))
+    >>> param.n_params, param.pinned_at_zero
+    (2, True)
+    >>> theta = torch.tensor([[-1.0, 1.0]], dtype=torch.float64)
+    >>> param.evaluate(theta, torch.tensor([0.5, 2.0], dtype=torch.float64)).tolist()
+    [[-0.375, 6.0]]
     """
 
     symmetry_mode = "exact"
@@ -247,6 +293,27 @@ def register_curve(cls: type) -> type:
 
     Model files never import code: a saved ``LinearFittedCurve`` names its representation, and
     only registered (or built-in) classes are rebuilt. Usable as a decorator.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import torch
+    >>> import charcurves as cc
+    >>> from charcurves.curves import LinearCurve, Polynomial, register_curve
+    >>> from charcurves.systems import get_system
+    >>> from charcurves.templates import Separable
+    >>> @register_curve
+    ... class Cubic(LinearCurve):  # f(u) = c1 u + c3 u**3
+    ...     def __init__(self):
+    ...         pass
+    ...     def features(self, u):
+    ...         return torch.stack([u, u**3], dim=-1)
+    >>> template = Separable(f1=Polynomial(degree=1), f2=Cubic())
+    >>> model = cc.fit(get_system("duffing").simulate(), template=template)
+    >>> path = os.path.join(tempfile.mkdtemp(), "cubic-model")
+    >>> model.save(path)
+    >>> round(float(cc.load_model(path).curves["f2"](2.0)), 6)
+    6.0
     """
     if not (isinstance(cls, type) and issubclass(cls, LinearCurve)):
         raise ConfigError(f"register_curve takes a LinearCurve subclass, got {cls!r}")

@@ -25,6 +25,13 @@ def first_disallowed_token(text: str, name_ok, ops, *, cost_guard: bool = True) 
     parser evaluates Python code, so nothing else may reach it). With ``cost_guard`` (the default)
     a text made only of allowed tokens is also refused with a ConfigError when sympy's exact
     arithmetic on it could hang (``9**9**9``; see ``expression_cost_problem``).
+
+    Examples
+    --------
+    >>> from charcurves.curves import first_disallowed_token
+    >>> ok = {"z", "tanh"}.__contains__
+    >>> first_disallowed_token("tanh(50*z)", ok, {"*", "(", ")"}), first_disallowed_token("z.real", ok, {"*"})
+    (None, '.')
     """
     import io
     import tokenize
@@ -66,7 +73,19 @@ def _check_tokens(text: str) -> None:
 
 
 def parse_basis_function(text: str):
-    """Parse a closed form in ``z`` safely: the text is checked token by token before sympy sees it."""
+    """Parse a closed form in ``z`` safely: the text is checked token by token before sympy sees it.
+
+    Examples
+    --------
+    >>> from charcurves.curves import parse_basis_function
+    >>> parse_basis_function("0.8*tanh(50*z) + z**3")
+    z**3 + 0.8*tanh(50*z)
+    >>> try:
+    ...     parse_basis_function("__import__('os')")
+    ... except ValueError as exc:
+    ...     print(str(exc)[:40])
+    "__import__('os')" is not a plain expres
+    """
     import sympy as sp
     from sympy.parsing.sympy_parser import parse_expr, standard_transformations
 
@@ -110,6 +129,14 @@ def expression_cost_problem(text: str) -> str | None:
     in their exponent, which may hold at most two numbers of magnitude <= 100; powers nested in
     bases may multiply their exponents up to 1e5; numbers have at most 30 digits. Fitted curves
     stay far inside these bounds.
+
+    Examples
+    --------
+    >>> from charcurves.curves import expression_cost_problem
+    >>> expression_cost_problem("z**3 - z") is None
+    True
+    >>> expression_cost_problem("9**9**9")
+    'nests a power in an exponent (exact evaluation could take forever)'
     """
     import ast
 

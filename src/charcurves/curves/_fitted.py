@@ -24,6 +24,13 @@ class FittedCurve(abc.ABC):
     argument : str      the argument as written in the equation, e.g. "x'"
     domain : (float, float)  the training range of the argument
     shift : float       constant added to the raw representation (gauge)
+
+    Examples
+    --------
+    >>> from charcurves.curves import FittedCurve, SymbolicFittedCurve
+    >>> f2 = SymbolicFittedCurve("f2", "x", (-2.0, 2.0), "z**3 - z")
+    >>> isinstance(f2, FittedCurve), f2.domain, f2([0.0, 2.0]).tolist()
+    (True, (-2.0, 2.0), [0.0, 6.0])
     """
 
     kind: ClassVar[str]
@@ -102,6 +109,16 @@ class NeuralFittedCurve(FittedCurve):
 
     ``theta`` holds one row of weights per ensemble member (several starts of the same fit
     are averaged: it cancels most of the initialisation-dependent part of the error).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.curves import NeuralCurve, NeuralFittedCurve
+    >>> spec = NeuralCurve(hidden=(4,), symmetry="odd")
+    >>> theta = np.random.default_rng(0).normal(size=(3, spec.n_params))  # 3 members
+    >>> f1 = NeuralFittedCurve("f1", "x'", (-1.0, 1.0), spec, theta, in_scale=1.0, out_scale=2.0)
+    >>> f1.theta.shape, f1.pinned_at_zero, bool(np.isclose(f1(-0.5), -f1(0.5)))
+    ((3, 14), True, True)
     """
 
     kind = "neural"
@@ -112,11 +129,8 @@ class NeuralFittedCurve(FittedCurve):
         self.spec = spec
         self.theta = np.atleast_2d(np.asarray(theta, dtype=np.float64))
         if self.theta.ndim != 2 or self.theta.shape[1] != spec.n_params:
-            raise ModelFileError(
-                f"curve {name}: weights of shape {self.theta.shape} stored but the network needs {spec.n_params} "
-                "per member; "
-                "the model file is corrupted"
-            )
+            raise ModelFileError(f"curve {name}: weights of shape {self.theta.shape} stored but the network needs "
+                                 f"{spec.n_params} per member; the model file is corrupted")
         self.in_scale = float(in_scale)
         self.out_scale = float(out_scale)
         if not (np.isfinite(self.in_scale) and self.in_scale > 0 and np.isfinite(self.out_scale)
@@ -230,16 +244,10 @@ class NeuralFittedCurve(FittedCurve):
     @classmethod
     def from_spec(cls, d, arrays):
         net = d["network"]
-        spec = NeuralCurve(
-            hidden=tuple(net["hidden"]),
-            activation=net["activation"],
-            symmetry=net["symmetry"],
-            symmetry_mode=net["symmetry_mode"],
-            linear_term=bool(net["linear_term"]),
-            jump=bool(net["jump"]),
-            powers=tuple(int(k) for k in net.get("powers", ())),
-            harmonics=tuple(float(w) for w in net.get("harmonics", ())),
-        )
+        spec = NeuralCurve(hidden=tuple(net["hidden"]), activation=net["activation"], symmetry=net["symmetry"],
+                           symmetry_mode=net["symmetry_mode"], linear_term=bool(net["linear_term"]),
+                           jump=bool(net["jump"]), powers=tuple(int(k) for k in net.get("powers", ())),
+                           harmonics=tuple(float(w) for w in net.get("harmonics", ())))
         key = f"{d['name']}.theta"
         if key not in arrays:
             raise ModelFileError(f"the weights of curve {d['name']} are missing from the model file")
@@ -263,7 +271,15 @@ _NUMPY_ACTIVATIONS = {
 
 
 class BasisFittedCurve(FittedCurve):
-    """A linear combination of closed-form basis functions of ``z``: ``sum c_j b_j(z) + shift``."""
+    """A linear combination of closed-form basis functions of ``z``: ``sum c_j b_j(z) + shift``.
+
+    Examples
+    --------
+    >>> from charcurves.curves import BasisFittedCurve
+    >>> f1 = BasisFittedCurve("f1", "x'", (-1.0, 1.0), ["z", "tanh(50*z)"], [0.3, 0.8])
+    >>> f1.expression(), round(float(f1(0.5)), 4)
+    (0.3*z + 0.8*tanh(50*z), 0.95)
+    """
 
     kind = "basis"
 
@@ -320,6 +336,13 @@ class SymbolicFittedCurve(FittedCurve):
     """A closed-form curve ``expr(z) + shift`` (from symbolic regression or post-SR).
 
     ``sign`` and ``Abs`` evaluate exactly here; simulation code may smooth them (documented there).
+
+    Examples
+    --------
+    >>> from charcurves.curves import SymbolicFittedCurve
+    >>> f2 = SymbolicFittedCurve("f2", "x", (-2.0, 2.0), "1.274*z", shift=0.1)
+    >>> f2.expression(), f2.pinned_at_zero, round(float(f2(1.0)), 3)
+    (1.274*z + 0.1, True, 1.374)
     """
 
     kind = "symbolic"
@@ -369,6 +392,13 @@ class LinearFittedCurve(FittedCurve):
     The model file stores the representation's class name and parameters and the coefficients;
     loading rebuilds the representation through :func:`~charcurves.curves.register_curve` (no code
     is imported from the file).
+
+    Examples
+    --------
+    >>> from charcurves.curves import Basis, LinearFittedCurve
+    >>> f2 = LinearFittedCurve("f2", "x", (-2.0, 2.0), Basis("z, z**3"), [-2.0, 8.0], half_width=2.0)
+    >>> [round(float(v), 6) for v in f2([1.0, 2.0])]
+    [0.0, 6.0]
     """
 
     kind = "linear"
@@ -437,11 +467,32 @@ _KINDS: dict[str, Any] = {"neural": NeuralFittedCurve, "basis": BasisFittedCurve
 
 
 def register_curve_kind(cls) -> None:
-    """Make a FittedCurve subclass loadable from model files (by its ``kind``)."""
+    """Make a FittedCurve subclass loadable from model files (by its ``kind``).
+
+    Examples
+    --------
+    >>> from charcurves.curves import SymbolicFittedCurve, curve_from_spec, register_curve_kind
+    >>> class Checked(SymbolicFittedCurve):  # a closed form with its own kind in model files
+    ...     kind = "checked-symbolic"
+    >>> register_curve_kind(Checked)
+    >>> spec, arrays = Checked("f2", "x", (-2.0, 2.0), "z**3").to_spec()
+    >>> type(curve_from_spec(spec, arrays)).__name__
+    'Checked'
+    """
     _KINDS[cls.kind] = cls
 
 
 def curve_from_spec(d: dict, arrays: dict) -> FittedCurve:
+    """A fitted curve from its ``to_spec()`` description and arrays (how model files are read).
+
+    Examples
+    --------
+    >>> from charcurves.curves import BasisFittedCurve, curve_from_spec
+    >>> spec, arrays = BasisFittedCurve("f2", "x", (-2.0, 2.0), ["z", "z**3"], [-1.0, 1.0]).to_spec()
+    >>> curve = curve_from_spec(spec, arrays)
+    >>> type(curve).__name__, float(curve(2.0))
+    ('BasisFittedCurve', 6.0)
+    """
     kind = d.get("kind")
     if kind not in _KINDS:
         raise ModelFileError(f"unknown curve kind {kind!r} in the model file; it may come from a newer charcurves")

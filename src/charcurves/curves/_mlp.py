@@ -51,6 +51,17 @@ class BatchedMLP:
 
     Parameters live outside the object (a ``(K, P)`` tensor) so that optimisers can treat every
     component of a model uniformly; this class only knows the layout.
+
+    Examples
+    --------
+    >>> import torch
+    >>> from charcurves.curves import BatchedMLP
+    >>> mlp = BatchedMLP(hidden=(8, 8), activation="tanh")
+    >>> mlp.n_params
+    97
+    >>> theta = mlp.init(3, torch.Generator().manual_seed(0))
+    >>> mlp.forward(theta, torch.linspace(-1, 1, 5, dtype=torch.float64)).shape
+    torch.Size([3, 5])
     """
 
     def __init__(self, hidden: Sequence[int], activation: str = "tanh"):

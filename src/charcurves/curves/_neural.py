@@ -46,7 +46,15 @@ _LOG_EPS_LO, _LOG_EPS_HI = math.log(1e-7), 0.0
 
 def jump_log_eps(raw):
     """log(eps) from the raw parameter: identity inside the range, smoothly saturating at its ends
-    (torch tensors or numpy arrays)."""
+    (torch tensors or numpy arrays).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.curves import jump_log_eps
+    >>> [f"{eps:.3g}" for eps in np.exp(jump_log_eps(np.log([1e-3, 1e-12, 10.0])))]  # kept in [1e-7, 1]
+    ['0.000999', '1e-07', '0.909']
+    """
     if isinstance(raw, torch.Tensor):
         sp = torch.nn.functional.softplus
         return _LOG_EPS_HI - sp((_LOG_EPS_HI - _LOG_EPS_LO) - sp(raw - _LOG_EPS_LO))
@@ -86,6 +94,13 @@ class NeuralCurve:
         ``a_w sin(w u) + b_w cos(w u)`` beside the network (only the sine under an exact odd prior,
         only the cosine under an even one). Free of weight decay: they carry a curve that oscillates
         over many periods of its argument, which a small network cannot follow.
+
+    Examples
+    --------
+    >>> from charcurves.curves import NeuralCurve
+    >>> spec = NeuralCurve(hidden=(8,), symmetry="odd", powers=(3,))
+    >>> spec.n_params, spec.pinned_at_zero, spec.poly_powers
+    (27, True, (3,))
     """
 
     hidden: tuple[int, ...] = (8,)

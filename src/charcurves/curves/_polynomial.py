@@ -35,7 +35,14 @@ POLY_BASES = ("chebyshev", "power")
 
 
 def poly_powers(degree: int, sym: str) -> list[int]:
-    """Powers of the mapped variable used as columns (the constant is not a column)."""
+    """Powers of the mapped variable used as columns (the constant is not a column).
+
+    Examples
+    --------
+    >>> from charcurves.curves import poly_powers
+    >>> poly_powers(5, "none"), poly_powers(5, "odd"), poly_powers(5, "even")
+    ([1, 2, 3, 4, 5], [1, 3, 5], [2, 4])
+    """
     if sym == "odd":
         return list(range(1, degree + 1, 2))
     if sym == "even":
@@ -61,6 +68,7 @@ class Polynomial(LinearCurve):
 
     Examples
     --------
+    >>> from charcurves.curves import Polynomial
     >>> Polynomial(degree=3, symmetry="odd")
     Polynomial(degree=3, symmetry='odd')
     """
@@ -180,7 +188,16 @@ def _column_derivative_torch(s, k: int, basis: str):
 
 
 def column_numpy(s: np.ndarray, k: int, basis: str) -> np.ndarray:
-    """The column ``T_k(s)`` or ``s**k`` in numpy (what the least-squares design uses)."""
+    """The column ``T_k(s)`` or ``s**k`` in numpy (what the least-squares design uses).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.curves import column_numpy
+    >>> s = np.array([-1.0, 0.0, 0.5, 1.0])
+    >>> column_numpy(s, 3, "chebyshev").tolist(), column_numpy(s, 3, "power").tolist()
+    ([-1.0, 0.0, -1.0, 1.0], [-1.0, 0.0, 0.125, 1.0])
+    """
     from numpy.polynomial import chebyshev as cheb
 
     if basis == "chebyshev":
@@ -191,7 +208,14 @@ def column_numpy(s: np.ndarray, k: int, basis: str) -> np.ndarray:
 
 
 def series_in_s(coef_by_power: dict[int, float], degree: int, basis: str) -> np.ndarray:
-    """Power-series coefficients (index = power of s) of sum_k c_k B_k(s); no constant included."""
+    """Power-series coefficients (index = power of s) of sum_k c_k B_k(s); no constant included.
+
+    Examples
+    --------
+    >>> from charcurves.curves import series_in_s
+    >>> series_in_s({1: 1.0, 3: 1.0}, 3, "chebyshev").tolist()
+    [0.0, -2.0, 0.0, 4.0]
+    """
     from numpy.polynomial import chebyshev as cheb
 
     c = np.zeros(degree + 1)
@@ -215,7 +239,17 @@ def _expand(series_s: np.ndarray, c: float, h: float) -> np.ndarray:
 
 def build_polynomial_curve(name: str, argument: str, domain, series_s: np.ndarray, c: float, h: float, sym: str,
                            expand_tol: float):
-    """``(BasisFittedCurve, form, error)`` for sum_k a_k s^k: in powers of z when accurate, else mapped."""
+    """``(BasisFittedCurve, form, error)`` for sum_k a_k s^k: in powers of z when accurate, else mapped.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.curves import build_polynomial_curve
+    >>> series = np.array([0.0, 0.0, 1.0])  # s**2 with s = (z - 1) / 1
+    >>> curve, form, error = build_polynomial_curve("f2", "x", (0.0, 2.0), series, 1.0, 1.0, "none", 1e-9)
+    >>> curve.expression(), form, error < 1e-12
+    (1.0*z**2 - 2.0*z + 1.0, 'power', True)
+    """
     from numpy.polynomial import polynomial as poly
 
     from ._fitted import BasisFittedCurve

@@ -24,7 +24,15 @@ __all__ = ["CurveRefit", "trainable", "SymbolicParametrisation"]
 
 @dataclasses.dataclass
 class CurveRefit:
-    """A fitted curve as ``shift + out_scale * param.evaluate(theta, (z - center) / half_width)``."""
+    """A fitted curve as ``shift + out_scale * param.evaluate(theta, (z - center) / half_width)``.
+
+    Examples
+    --------
+    >>> from charcurves.curves import CurveRefit, SymbolicFittedCurve, trainable
+    >>> refit = trainable(SymbolicFittedCurve("f1", "x'", (-1.0, 1.0), "0.3*z + 0.8*tanh(50.0*z)"))
+    >>> isinstance(refit, CurveRefit), refit.param.n_params, sorted(refit.labels)
+    (True, 3, ['f1:tanh(50.0*z)', 'f1:tanh(50.0*z)#0', 'f1:z'])
+    """
 
     param: Any  # a parametrisation (NeuralCurve, LinearParametrisation, SymbolicParametrisation, ...)
     theta: np.ndarray  # (members, n_params)
@@ -37,7 +45,18 @@ class CurveRefit:
 
 
 def trainable(curve) -> CurveRefit:
-    """The :class:`CurveRefit` of a fitted curve (ConfigError for kinds that cannot be trained)."""
+    """The :class:`CurveRefit` of a fitted curve (ConfigError for kinds that cannot be trained).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.curves import BasisFittedCurve, trainable
+    >>> refit = trainable(BasisFittedCurve("f2", "x", (-2.0, 2.0), ["z", "z**3"], [-1.0, 1.0]))
+    >>> refit.theta.tolist(), refit.labels
+    ([[-1.0, 1.0]], ['f2:z', 'f2:z**3'])
+    >>> float(refit.rebuild(np.array([[-1.0, 2.0]]))(1.0))
+    1.0
+    """
     from ._base import LinearParametrisation
     from ._fitted import BasisFittedCurve, LinearFittedCurve, NeuralFittedCurve, SymbolicFittedCurve
     from ._specs import Basis
@@ -86,7 +105,18 @@ def trainable(curve) -> CurveRefit:
 
 
 class SymbolicParametrisation:
-    """A closed form with its numeric coefficients as parameters (module docstring)."""
+    """A closed form with its numeric coefficients as parameters (module docstring).
+
+    Examples
+    --------
+    >>> import sympy as sp
+    >>> from charcurves.curves import SymbolicParametrisation
+    >>> param = SymbolicParametrisation(sp.sympify("z**3 - z + 0.5*tanh(20.0*z)"))
+    >>> sorted(zip(param.labels, param.theta0.tolist()))
+    [('tanh(20.0*z)', 0.5), ('tanh(20.0*z)#0', 20.0), ('z', -1.0), ('z**3', 1.0)]
+    >>> param.expression(2 * param.theta0)
+    2.0*z**3 - 2.0*z + 1.0*tanh(40.0*z)
+    """
 
     symmetry = "none"
     exact_symmetry = "none"

@@ -41,6 +41,7 @@ class Neural(AbstractCurve):
 
     Examples
     --------
+    >>> from charcurves.curves import Neural
     >>> Neural(symmetry="odd")
     Neural(symmetry='odd')
     """
@@ -153,6 +154,13 @@ class SparseLibrary(LinearCurve):
     -----
     All SparseLibrary curves of one fit share one sparse regression; their optimizer settings
     must agree.
+
+    Examples
+    --------
+    >>> from charcurves.curves import SparseLibrary
+    >>> library = SparseLibrary(degree=7, symmetry="odd")
+    >>> library.powers(), library.resolved_optimizer(free_gain=False), library.resolved_threshold(free_gain=True)
+    ([1, 3, 5, 7], 'constrained-sr3', 0.0001)
     """
 
     def __init__(self, degree: int = 10, symmetry: str | None = None, optimizer: str | None = None,
@@ -246,6 +254,7 @@ class Basis(LinearCurve):
 
     Examples
     --------
+    >>> from charcurves.curves import Basis
     >>> Basis("z, z**3").function_list()
     ['z', 'z**3']
     """
@@ -346,6 +355,15 @@ class Symbolic(AbstractCurve):
     Notes
     -----
     Symbolic curves are found, not trained: every curve of a fit must then be Symbolic.
+
+    Examples
+    --------
+    >>> from charcurves.curves import Symbolic
+    >>> from charcurves.templates import Separable
+    >>> Separable(f1=Symbolic(operators=["add", "mul", "tanh"]), f2=Symbolic())
+    Separable(f1=Symbolic(operators=['add', 'mul', 'tanh']), f2=Symbolic())
+    >>> Symbolic(joint=True).kind
+    'symbolic'
     """
 
     kind = "symbolic"

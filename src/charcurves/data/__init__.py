@@ -32,5 +32,12 @@ from ._holds import check_hold as check_hold
 from ._holds import rk4_sampled as rk4_sampled
 from ._holds import stage_inputs as stage_inputs
 
-#: The older name of :class:`SmoothingSpline`.
 Spline = SmoothingSpline
+"""The older name of :class:`SmoothingSpline`.
+
+Examples
+--------
+>>> from charcurves.data import SmoothingSpline, Spline
+>>> Spline is SmoothingSpline
+True
+"""

@@ -150,6 +150,7 @@ class KalmanSmoother(Differentiator):
     Examples
     --------
     >>> import numpy as np
+    >>> from charcurves.data import KalmanSmoother
     >>> t = np.linspace(0.0, 10.0, 400)
     >>> y = np.sin(t) + 0.01 * np.random.default_rng(0).standard_normal(400)
     >>> x_hat, v, a = KalmanSmoother()(t, y)

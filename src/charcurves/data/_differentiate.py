@@ -156,8 +156,13 @@ def make_differentiator(name_or_obj: str | Differentiator, **params: Any) -> Dif
 
     An instance is returned as it is (then no parameters may be given).
 
+    Examples
+    --------
+    >>> from charcurves.data import make_differentiator
     >>> make_differentiator("savgol", window=51)
     SavitzkyGolay(window=51, order=3, mode='interp')
+    >>> make_differentiator("spline")
+    SmoothingSpline(lam=None, order=5)
     """
     if isinstance(name_or_obj, Differentiator):
         if params:
@@ -210,6 +215,18 @@ def estimate_derivatives(
         ``spline`` when it is not.
     **params
         Parameters of the named method (e.g. ``window=51`` for ``savgol``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.data import Trajectory, estimate_derivatives
+    >>> t = np.linspace(0, 20, 1000)
+    >>> record = Trajectory(t=t, x=np.sin(t), F=np.cos(t))
+    >>> smooth = estimate_derivatives(record, "savgol", window=31)
+    >>> print(f"{np.max(np.abs(smooth.a + np.sin(t))):.1e}")
+    3.0e-02
+    >>> estimate_derivatives(record).has_derivatives
+    True
     """
     if not isinstance(traj, Trajectory):
         raise DataError(

@@ -25,6 +25,16 @@ class NoiseFloor:
     """Variance of the measurement noise in the equation's units (what a perfect fit leaves).
 
     ``floor = g² σ_F² + σ_a² + REL_FLOOR · g² var(F)``; ``source`` says where σ_F came from.
+
+    Examples
+    --------
+    >>> from charcurves.data import NoiseFloor, noise_floor
+    >>> from charcurves.systems import get_system
+    >>> nf = noise_floor(get_system("duffing").simulate(), snr_db=20)
+    >>> isinstance(nf, NoiseFloor), nf.source
+    (True, 'given SNR 20 dB')
+    >>> print(f"{nf.floor:.5f}")
+    0.00126
     """
 
     sigma2_force: float
@@ -69,6 +79,7 @@ def noise_variance(y, settings: Sequence[tuple[int, int]] = NOISE_SETTINGS) -> f
     Examples
     --------
     >>> import numpy as np
+    >>> from charcurves.data import noise_variance
     >>> t = np.linspace(0, 10, 2000)
     >>> y = np.sin(t) + np.random.default_rng(0).normal(scale=0.1, size=t.size)
     >>> round(noise_variance(y), 3)   # 0.1 ** 2
@@ -99,7 +110,7 @@ def noise_floor(record, *, gain: float = 1.0, snr_db: float | None = None,
     Examples
     --------
     >>> from charcurves.systems import get_system
-    >>> from charcurves.data import corrupt
+    >>> from charcurves.data import corrupt, noise_floor
     >>> record = corrupt(get_system("duffing").simulate(), 20, seed=0)
     >>> nf = noise_floor(record)
     >>> round(nf.sigma2_force, 5)   # the noise added has variance 0.00120
@@ -136,7 +147,7 @@ def equation_floors(record, *, gain: float = 1.0, snr_db: float | None = None,
     Examples
     --------
     >>> from charcurves.systems import get_system
-    >>> from charcurves.data import corrupt
+    >>> from charcurves.data import corrupt, equation_floors
     >>> record = corrupt(get_system("duffing").simulate(), 20, seed=0)
     >>> [round(nf.floor, 5) for nf in equation_floors(record, snr_db=20)]
     [0.00127]

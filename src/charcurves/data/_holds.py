@@ -29,6 +29,18 @@ _CHECK_EVERY = 32
 
 
 def check_hold(hold: str, substeps: int) -> None:
+    """Refuse an unknown input hold (see :data:`HOLDS`) or a bad number of RK4 sub-steps per sample.
+
+    Examples
+    --------
+    >>> from charcurves.data import check_hold
+    >>> check_hold("zoh", 4)
+    >>> try:
+    ...     check_hold("cubic", 4)
+    ... except ValueError as exc:
+    ...     print(exc)
+    unknown input hold 'cubic'; choose one of linear, zoh, bandlimited
+    """
     if hold not in HOLDS:
         raise ConfigError(f"unknown input hold {hold!r}; choose one of {', '.join(HOLDS)}")
     if not isinstance(substeps, (int, np.integer)) or isinstance(substeps, bool) or substeps < 1:
@@ -70,6 +82,13 @@ def stage_inputs(u, substeps: int = 1, hold: str = "linear") -> tuple[np.ndarray
     -------
     u_start, u_mid, u_end : arrays ((n - 1) * substeps,)
         u at the start, the middle and the end of each sub-step, in time order.
+
+    Examples
+    --------
+    >>> from charcurves.data import stage_inputs
+    >>> u_start, u_mid, u_end = stage_inputs([0.0, 1.0, 2.0], substeps=2)
+    >>> u_start.tolist(), u_mid.tolist(), u_end.tolist()
+    ([0.0, 0.5, 1.0, 1.5], [0.25, 0.75, 1.25, 1.75], [0.5, 1.0, 1.5, 2.0])
     """
     check_hold(hold, substeps)
     u = np.asarray(u, dtype=float).reshape(-1)
@@ -113,6 +132,15 @@ def rk4_sampled(accel: Callable, u_start, u_mid, u_end, x0, v0, dt: float, subst
         The state at every sample; NaN after divergence, and from the stop on after a timeout.
     status : str
         "ok", "diverged" (at least one state of the batch diverged) or "timeout".
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.data import rk4_sampled, stage_inputs
+    >>> u = np.zeros(101)
+    >>> x, v, status = rk4_sampled(lambda x, v, u: u - x, *stage_inputs(u), x0=1.0, v0=0.0, dt=0.01 * np.pi)
+    >>> status, round(float(x[-1]), 6)
+    ('ok', -1.0)
     """
     n_sub = len(u_start)
     if n_sub % substeps:

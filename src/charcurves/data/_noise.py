@@ -62,7 +62,18 @@ def _as_signal(clean: Any) -> np.ndarray:
 
 
 def as_rng(rng: Any) -> np.random.Generator:
-    """A numpy Generator from a Generator, a non-negative integer seed or None (ConfigError otherwise)."""
+    """A numpy Generator from a Generator, a non-negative integer seed or None (ConfigError otherwise).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.data import as_rng
+    >>> float(as_rng(0).normal()) == float(np.random.default_rng(0).normal())
+    True
+    >>> gen = np.random.default_rng(1)
+    >>> as_rng(gen) is gen
+    True
+    """
     if isinstance(rng, np.random.Generator):
         return rng
     if rng is None or (isinstance(rng, numbers.Integral) and not isinstance(rng, bool)):
@@ -91,6 +102,7 @@ def snr_to_eta(snr_db: float) -> float:
 
     Examples
     --------
+    >>> from charcurves.data import snr_to_eta
     >>> snr_to_eta(20), snr_to_eta(float("inf"))
     (0.1, 0.0)
     """
@@ -117,6 +129,16 @@ def noise_sigma(clean: Any, snr_db: float, reference: str = "std") -> float:
     -------
     float
         σ_n = η · σ_clean.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.data import noise_sigma
+    >>> F = 2 * np.sin(np.linspace(0, 20 * np.pi, 4000))
+    >>> print(f"{noise_sigma(F, 20):.4f}")
+    0.1414
+    >>> print(f"{noise_sigma(F + 1, 20, reference='rms'):.4f}")
+    0.1732
     """
     eta = snr_to_eta(snr_db)
     reference = _check_reference(reference)
@@ -156,6 +178,7 @@ def add_noise(clean: Any, snr_db: float, rng: Any = None, reference: str = "std"
     Examples
     --------
     >>> import numpy as np
+    >>> from charcurves.data import add_noise
     >>> y = add_noise(np.sin(np.linspace(0, 10, 1000)), 20, rng=0)
     >>> y.shape
     (1000,)
@@ -197,6 +220,18 @@ def corrupt(
     Returns
     -------
     Trajectory
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.data import corrupt
+    >>> from charcurves.systems import get_system
+    >>> clean = get_system("duffing").simulate()
+    >>> noisy = corrupt(clean, 20, seed=0)
+    >>> print(f"{np.std(noisy.F - clean.F) / np.std(clean.F):.2f}")
+    0.10
+    >>> corrupt(clean, 30, on="state", seed=0).v is None
+    True
     """
     if not isinstance(traj, Trajectory):
         raise DataError(f"corrupt() needs a Trajectory, got {type(traj).__name__}")

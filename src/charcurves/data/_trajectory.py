@@ -121,6 +121,7 @@ class Trajectory(_SampledRecord):
     Examples
     --------
     >>> import numpy as np
+    >>> from charcurves.data import Trajectory
     >>> t = np.linspace(0, 10, 200)
     >>> tr = Trajectory(t=t, x=np.sin(t), F=np.cos(t))
     >>> tr.n_samples, round(tr.dt, 4)
@@ -343,6 +344,7 @@ class MultiTrajectory(_SampledRecord):
     Examples
     --------
     >>> import numpy as np
+    >>> from charcurves.data import MultiTrajectory
     >>> t = np.linspace(0, 10, 100)
     >>> tr = MultiTrajectory(t, {"x1": np.sin(t), "x2": np.cos(t)}, {"F1": t * 0, "F2": np.sin(2 * t)})
     >>> tr.n_samples, tr.has_derivatives

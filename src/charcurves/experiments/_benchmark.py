@@ -183,7 +183,19 @@ from ._tables import (  # noqa: E402 - the tables of the report, re-exported (th
 # ---------------------------------------------------------------------- the run
 @dataclasses.dataclass
 class BenchmarkResult:
-    """What :func:`run_benchmark` produced."""
+    """What :func:`run_benchmark` produced.
+
+    Examples
+    --------
+    The example is not run in the tests: even this smallest benchmark takes about 15 s.
+
+    >>> import os
+    >>> from charcurves.experiments import run_benchmark
+    >>> result = run_benchmark("bench", systems=["duffing"], methods=["parametric"], snr_db=[20], realizations=1,
+    ...                        skip=("forward", "lyapunov", "miw", "sensitivity", "appendix-f"))  # doctest: +SKIP
+    >>> result.n_jobs, result.n_failed, os.path.basename(result.report_html)  # doctest: +SKIP
+    (1, 0, 'report.html')
+    """
 
     out_dir: str
     results_csv: str
@@ -274,6 +286,17 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
     Returns
     -------
     BenchmarkResult
+
+    Examples
+    --------
+    The example is not run in the tests: even this smallest benchmark (one fit, no side studies) takes about 15 s.
+
+    >>> import os
+    >>> from charcurves.experiments import run_benchmark
+    >>> result = run_benchmark("bench", systems=["duffing"], methods=["parametric"], snr_db=[20], realizations=1,
+    ...                        skip=("forward", "lyapunov", "miw", "sensitivity", "appendix-f"))  # doctest: +SKIP
+    >>> sorted(os.listdir("bench"))  # doctest: +SKIP
+    ['extras.json', 'figures', 'models', 'report.html', 'report.md', 'results.csv', 'results.sqlite']
     """
     from ..fitting import get_preset
     from ._sweep import EXECUTORS, PAPER_SNR_DB, Sweep, run_sweep

@@ -11,7 +11,7 @@ import os
 import shutil
 import tempfile
 
-__all__ = ["model_files", "write_model_files", "MODEL_FILES_KEY"]
+__all__ = ["model_files", "write_model_files", "write_row_model", "MODEL_FILES_KEY"]
 
 #: Key of a result row that carries the saved model's files (``{name: bytes}``) to the driver; the
 #: driver removes it before the row is stored.
@@ -53,3 +53,17 @@ def write_model_files(path: str, files: dict[str, bytes]) -> None:
             shutil.rmtree(tmp, ignore_errors=True)
     for name in order:
         atomic_write_bytes(os.path.join(path, name), files[name])
+
+
+def write_row_model(row: dict, models_dir: str | None, store_dir: str) -> None:
+    """Write the model files a worker returned with ``row`` (and drop them from it)."""
+    files = row.pop(MODEL_FILES_KEY, None)
+    name = (row.get("extra") or {}).pop("model_name", None)
+    if files is None or models_dir is None or name is None:
+        return
+    path = os.path.join(models_dir, name)
+    write_model_files(path, files)
+    try:
+        row["extra"]["model_path"] = os.path.relpath(os.path.abspath(path), store_dir).replace(os.sep, "/")
+    except ValueError:  # another drive (Windows)
+        row["extra"]["model_path"] = os.path.abspath(path)

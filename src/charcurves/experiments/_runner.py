@@ -21,7 +21,15 @@ __all__ = ["Job", "RunSettings", "run_unit", "init_worker"]
 
 @dataclasses.dataclass(frozen=True)
 class Job:
-    """One fit of one method on one noisy dataset (one row of the results store)."""
+    """One fit of one method on one noisy dataset (one row of the results store).
+
+    Examples
+    --------
+    >>> from charcurves.experiments import Job, Sweep
+    >>> job = Sweep(methods=["parametric"], snr_db=[20], realizations=1).jobs()[0]
+    >>> isinstance(job, Job), job.label(), round(job.eta, 3)
+    (True, 'duffing/parametric/force@20dB#0', 0.1)
+    """
 
     system: str
     variant: str
@@ -63,7 +71,18 @@ class Job:
 
 @dataclasses.dataclass(frozen=True)
 class RunSettings:
-    """How jobs are evaluated and run (not part of a job's identity unless noted in its config)."""
+    """How jobs are evaluated and run (not part of a job's identity unless noted in its config).
+
+    Examples
+    --------
+    >>> from charcurves.experiments import RunSettings, Sweep, run_unit
+    >>> settings = RunSettings(forward_cases=0, torch_threads=1)  # fits only, no forward validation
+    >>> settings.eps, settings.case_time_budget
+    (0.2, 20.0)
+    >>> [row] = run_unit(Sweep(methods=["parametric"], snr_db=[20], realizations=1).jobs(), settings)
+    >>> row["status"]
+    'ok'
+    """
 
     forward_cases: int = 0
     eps: float = 0.2
@@ -200,7 +219,15 @@ def _slug(job: Job) -> str:
 # ---------------------------------------------------------------------- the job function
 def run_unit(jobs: list[Job], settings: RunSettings) -> list[dict[str, Any]]:
     """Run a unit of jobs (one job, or a batch of neural jobs trained together) and return
-    one result row per job. Never raises for a failing job."""
+    one result row per job. Never raises for a failing job.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import RunSettings, Sweep, run_unit
+    >>> [row] = run_unit(Sweep(methods=["parametric"], snr_db=[20], realizations=1).jobs(), RunSettings())
+    >>> row["status"], row["method"], row["rmse_f2"] < 0.01
+    ('ok', 'parametric', True)
+    """
     if settings.torch_threads is not None:
         try:
             import torch

@@ -85,7 +85,15 @@ def _jsonable(obj: Any) -> Any:
 
 
 def job_key(row: Mapping[str, Any]) -> tuple:
-    """The identity tuple of a row or job mapping, in :data:`KEY_COLUMNS` order."""
+    """The identity tuple of a row or job mapping, in :data:`KEY_COLUMNS` order.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import job_key
+    >>> job_key({"system": "duffing", "variant": "paper", "method": "parametric", "noise_on": "force", "snr_db": 20,
+    ...          "realization": 0, "preset": "default"})
+    ('duffing', 'paper', 'parametric', 'force', 20.0, 0, 'default', '{}', '')
+    """
     out = []
     for c in KEY_COLUMNS:
         v = row.get(c, _KEY_DEFAULTS.get(c))
@@ -115,6 +123,17 @@ class ResultsStore:
     -----
     Write from one process (the sweep's driver); any number of readers may open the file
     meanwhile. NaN values are stored as NULL and read back as NaN/None.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from charcurves.experiments import ResultsStore
+    >>> store = ResultsStore(os.path.join(tempfile.mkdtemp(), "results.sqlite"))
+    >>> store.write({"system": "duffing", "variant": "paper", "method": "parametric", "noise_on": "force",
+    ...              "snr_db": 20.0, "realization": 0, "preset": "default", "status": "ok", "rmse_f1": 1e-3})
+    >>> len(store), store.to_dataframe()["rmse_f1"].tolist()
+    (1, [0.001])
+    >>> store.close()
     """
 
     def __init__(self, path: str | os.PathLike, *, timeout: float = 60.0):

@@ -1,20 +1,10 @@
 """Noise sweeps: systems × methods × SNR levels × noise realisations, resumable and parallel.
 
-A :class:`Sweep` names what to run; :func:`run_sweep` runs the jobs that its results store
-does not hold yet, in the driver, in a local process pool or as Ray tasks, and writes one row per
-job as soon as it finishes. Every method sees the identical noisy dataset of a (system, SNR,
-realisation): the noise seed is a stable hash of the dataset's identity, never of the method.
-Neural jobs of one (system, method, noise target, preset) are trained together, all
-realisations of an SNR level in one batched computation (``CharacteristicCurves.fit_many``).
-
-Examples
---------
->>> sweep = Sweep(systems=["duffing"], methods=["parametric"], snr_db=[20, 0], realizations=2)
->>> len(sweep.jobs())
-4
->>> a, b = Sweep(methods=["parametric"]).jobs()[0], Sweep(methods=["nn-cc"]).jobs()[0]
->>> a.noise_seed == b.noise_seed
-True
+A :class:`Sweep` names what to run; :func:`run_sweep` runs the jobs that its results store does not hold yet, in the
+driver, in a local process pool or as Ray tasks, and writes one row per job as soon as it finishes. Every method sees
+the identical noisy dataset of a (system, SNR, realisation): the noise seed is a stable hash of the dataset's identity,
+never of the method. Neural jobs of one (system, method, noise target, preset) are trained together, all realisations
+of an SNR level in one batched computation (``CharacteristicCurves.fit_many``).
 """
 
 from __future__ import annotations
@@ -30,23 +20,12 @@ from typing import Any
 
 from .._errors import ConfigError
 from ._executors import Progress, StopSignals, SweepInterrupted, ray_address, run_pool, run_ray
+from ._models import write_row_model
 from ._runner import Job, RunSettings, run_unit
 from ._store import ResultsStore, _jsonable
 
-__all__ = [
-    "Sweep",
-    "SweepReport",
-    "paper_grid",
-    "quick_grid",
-    "PAPER_SNR_DB",
-    "QUICK_SNR_DB",
-    "dataset_seed",
-    "default_fit_options",
-    "plan_units",
-    "run_sweep",
-    "EXECUTORS",
-    "SweepInterrupted",
-]
+__all__ = ["Sweep", "SweepReport", "paper_grid", "quick_grid", "PAPER_SNR_DB", "QUICK_SNR_DB", "dataset_seed",
+           "default_fit_options", "plan_units", "run_sweep", "EXECUTORS", "SweepInterrupted"]
 
 #: The paper's grid: 40, 39, ..., −20 dB (61 levels), 10 realisations each.
 PAPER_SNR_DB: tuple[float, ...] = tuple(float(s) for s in range(40, -21, -1))
@@ -56,15 +35,28 @@ EXECUTORS = ("local", "ray")
 
 
 def paper_grid(include_clean: bool = False) -> dict[str, Any]:
-    """``{"snr_db": (40, 39, ..., -20), "realizations": 10}`` (with ``inf`` first when
-    ``include_clean``, as the NN-CC and SR-CC scripts prepend 10 noise-free runs); pass it to
-    :class:`Sweep` with ``**paper_grid()``."""
+    """``{"snr_db": (40, 39, ..., -20), "realizations": 10}`` (with ``inf`` first when ``include_clean``, as the
+    NN-CC and SR-CC scripts prepend 10 noise-free runs); pass it to :class:`Sweep` with ``**paper_grid()``.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import paper_grid
+    >>> len(paper_grid()["snr_db"]), paper_grid(include_clean=True)["snr_db"][:2], paper_grid()["realizations"]
+    (61, (inf, 40.0), 10)
+    """
     snr = ((math.inf,) if include_clean else ()) + PAPER_SNR_DB
     return {"snr_db": snr, "realizations": 10}
 
 
 def quick_grid() -> dict[str, Any]:
-    """``{"snr_db": (40, 20, 0), "realizations": 2}``."""
+    """``{"snr_db": (40, 20, 0), "realizations": 2}``.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import quick_grid
+    >>> quick_grid()
+    {'snr_db': (40.0, 20.0, 0.0), 'realizations': 2}
+    """
     return {"snr_db": QUICK_SNR_DB, "realizations": 2}
 
 
@@ -78,6 +70,12 @@ def dataset_seed(purpose: str, system: str, variant: str, noise_on: str | None, 
 
     ``purpose`` separates the streams ("noise", "fit", "validation"); no method enters, so every
     method sees the same noise, the same initialisation seed and the same validation cases.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import dataset_seed
+    >>> dataset_seed("noise", "duffing", "paper", "force", 20.0, 0)
+    6385019594570048337
     """
     text = json.dumps([purpose, system, variant, noise_on, None if snr_db is None else _snr_text(float(snr_db)),
                        int(realization), int(base_seed)])
@@ -87,7 +85,14 @@ def dataset_seed(purpose: str, system: str, variant: str, noise_on: str | None, 
 
 def default_fit_options(system, method: str) -> dict[str, Any]:
     """Method settings a system needs by default: stick-slip Parametric gets the true basis
-    (``f1 = z, sign(z)`` for Coulomb friction, ``tanh(500 z)`` for the tanh law of the scripts)."""
+    (``f1 = z, sign(z)`` for Coulomb friction, ``tanh(500 z)`` for the tanh law of the scripts).
+
+    Examples
+    --------
+    >>> from charcurves import experiments, systems
+    >>> experiments.default_fit_options(systems.get_system("stick-slip"), "parametric")
+    {'basis': 'f1=z, sign(z); f2=z'}
+    """
     if method == "parametric" and getattr(system, "name", "") == "stick-slip":
         if getattr(system, "friction", "coulomb") == "coulomb":
             return {"basis": "f1=z, sign(z); f2=z"}
@@ -112,23 +117,31 @@ class Sweep:
     noise_on : {"force", "state"}
         Noise target (main text / Appendix F).
     preset : str or TrainingPreset
-        Training preset of neural methods ("default", "paper" or an object; an object that is
-        not a named preset is recorded with all its settings).
+        Training preset of neural methods ("default", "paper" or an object; an object that is not a named preset is
+        recorded with all its settings).
     variant : str or mapping
         System variant ("paper", "scripts"...), or ``{system: variant}``.
     options : mapping
         ``CharacteristicCurves`` keyword arguments for every method (e.g. ``{"derivatives": "savgol"}``).
     method_options : mapping
-        Per-method keyword arguments, ``{method: {...}}``; they override ``options`` and the
-        system defaults (:func:`default_fit_options`).
+        Per-method keyword arguments, ``{method: {...}}``; they override ``options`` and the system defaults
+        (:func:`default_fit_options`).
     noise_reference : {"std", "rms"}, optional
         Size of the clean forcing for the SNR (default: the library's "std"; the scripts: "rms").
     t_end, n_points : training record (40 s, 1000 samples)
     base_seed : int
-        Enters every derived seed; change it for an independent replicate of the whole sweep
-        (0 ... 2**32 - 1).
+        Enters every derived seed; change it for an independent replicate of the whole sweep (0 ... 2**32 - 1).
     tag : str
         A free label that is part of every job's identity (separates campaigns in one store).
+
+    Examples
+    --------
+    >>> from charcurves.experiments import Sweep
+    >>> len(Sweep(systems=["duffing"], methods=["parametric"], snr_db=[20, 0], realizations=2).jobs())
+    4
+    >>> a, b = Sweep(methods=["parametric"]).jobs()[0], Sweep(methods=["nn-cc"]).jobs()[0]
+    >>> a.noise_seed == b.noise_seed  # every method sees the same noisy record
+    True
     """
 
     systems: Sequence[str] = ("duffing",)
@@ -279,10 +292,16 @@ class Sweep:
 
 
 def plan_units(jobs: Sequence[Job], *, batch: str | int = "level", max_batch: int | None = None) -> list[list[Job]]:
-    """Group jobs into units of work: neural jobs of one (system, variant, method, noise target,
-    preset, config, tag) and record length are batched (``batch="level"``: per SNR level;
-    ``"all"``: across levels; an int: that many realisations at most; ``"none"``: no batching),
-    other methods run one job per unit."""
+    """Group jobs into units of work: neural jobs of one (system, variant, method, noise target, preset, config,
+    tag) and record length are batched (``batch="level"``: per SNR level; ``"all"``: across levels; an int: that
+    many realisations at most; ``"none"``: no batching), other methods run one job per unit.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import Sweep, plan_units
+    >>> [len(u) for u in plan_units(Sweep(methods=["parametric", "nn-cc"], snr_db=[20], realizations=3).jobs())]
+    [1, 1, 1, 3]
+    """
     from ..fitting import METHODS
 
     positive_int = isinstance(batch, int) and not isinstance(batch, bool) and batch >= 1
@@ -315,7 +334,14 @@ def plan_units(jobs: Sequence[Job], *, batch: str | int = "level", max_batch: in
 
 @dataclasses.dataclass
 class SweepReport:
-    """What :func:`run_sweep` did."""
+    """What :func:`run_sweep` did.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import Sweep, run_sweep
+    >>> print(run_sweep(Sweep(methods=["parametric"], snr_db=[20]), "sweep.sqlite", workers=1, progress=False))
+    2 jobs: 0 already stored, 2 run in 2 units (2 ok, 0 failed) in ... s with local x1; results in sweep.sqlite
+    """
 
     store_path: str
     n_jobs: int
@@ -351,28 +377,26 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
     store_path : str or PathLike
         SQLite results file (created when missing); a rerun resumes where the last one stopped.
     executor : {"local", "ray"}
-        "local": the driver itself when ``workers`` is 1, else a pool of ``workers`` processes
-        (spawned; call from under ``if __name__ == "__main__":`` in scripts). "ray": the same
-        job function as Ray tasks (``ray.init(num_cpus=workers, include_dashboard=False)`` unless
-        Ray is initialised already, or ``ray.init(address=address)`` for a cluster). Only the
-        driver (this process) writes the store and the models.
+        "local": the driver itself when ``workers`` is 1, else a pool of ``workers`` processes (spawned; call from
+        under ``if __name__ == "__main__":`` in scripts). "ray": the same job function as Ray tasks
+        (``ray.init(num_cpus=workers, include_dashboard=False)`` unless Ray is initialised already, or
+        ``ray.init(address=address)`` for a cluster). Only the driver (this process) writes the store and the models.
     workers : int, optional
         Parallel workers (default: the CPU count).
     progress : bool
         A progress bar on stderr (tqdm when installed, else a line per finished unit).
     forward_cases : int
-        Validation cases per fitted model (0: none). Part of a job's identity, with ``eps`` and
-        ``box_margin``.
+        Validation cases per fitted model (0: none). Part of a job's identity, with ``eps`` and ``box_margin``.
     eps, box_margin, case_time_budget, max_attempts, max_failed_cases
         Forward-validation settings (see :func:`~charcurves.experiments.evaluate_forward`).
     forward_rtol, forward_atol : float, optional
-        Tolerances of the models' forward integration; default: the system's (the truth's:
-        tight for the "paper" variants, LSODA's defaults for "scripts"). Part of a job's identity
-        when given. The forward simulations dominate a sweep's cost with the default preset; the
-        scripts' LSODA defaults (1e-3, 1e-6) are about 3x faster than 1e-10/1e-12.
+        Tolerances of the models' forward integration; default: the system's (the truth's: tight for the "paper"
+        variants, LSODA's defaults for "scripts"). Part of a job's identity when given. The forward simulations
+        dominate a sweep's cost with the default preset; the scripts' LSODA defaults (1e-3, 1e-6) are about 3x faster
+        than 1e-10/1e-12.
     time_budget_per_job : float, optional
-        Soft wall-clock budget of one job: a fit is never interrupted, but the forward cases only
-        get what is left of it (cases left over are recorded as "timeout").
+        Soft wall-clock budget of one job: a fit is never interrupted, but the forward cases only get what is left of
+        it (cases left over are recorded as "timeout").
     retry_failed : bool
         Also rerun jobs stored with status "failed".
     batch, max_batch
@@ -380,22 +404,24 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
     torch_threads : int or None
         Torch threads in each worker (1: best on shared machines; None: leave torch's setting).
     save_models : bool or str
-        Save each fitted model (``FittedModel.save``) under ``<store>.models/`` or the given folder.
-        Workers return the model files as bytes with their rows and the driver writes them, so on
-        a cluster the models land on the driver's disk; a row's ``extra["model_path"]`` is the
-        folder relative to the store's folder.
+        Save each fitted model (``FittedModel.save``) under ``<store>.models/`` or the given folder. Workers return the
+        model files as bytes with their rows and the driver writes them, so on a cluster the models land on the
+        driver's disk; a row's ``extra["model_path"]`` is the folder relative to the store's folder.
     address : str, optional
-        Ray cluster to run on with ``executor="ray"`` (``"auto"``, ``"ray://head:10001"``); default
-        ``RAY_ADDRESS`` from the environment, else a private Ray instance of ``workers`` CPUs. See
-        docs/cluster.md.
+        Ray cluster to run on with ``executor="ray"`` (``"auto"``, ``"ray://head:10001"``); default ``RAY_ADDRESS``
+        from the environment, else a private Ray instance of ``workers`` CPUs. See docs/cluster.md.
     ray_init_kwargs : mapping, optional
         Extra ``ray.init`` arguments (e.g. ``runtime_env``; no ``num_cpus`` with a cluster).
     on_row : callable, optional
         Called with every row after it is stored.
 
-    Returns
-    -------
-    SweepReport
+    Examples
+    --------
+    >>> from charcurves.experiments import Sweep, run_sweep
+    >>> sweep = Sweep(methods=["parametric"], snr_db=[20], realizations=2)
+    >>> report = run_sweep(sweep, "sweep.sqlite", workers=1, progress=False)  # in this process
+    >>> report.n_run, report.n_ok, run_sweep(sweep, "sweep.sqlite", workers=1, progress=False).n_skipped  # resumes
+    (2, 2, 2)
     """
     if executor not in EXECUTORS:
         raise ConfigError(f"executor must be one of {', '.join(EXECUTORS)}, got {executor!r}")
@@ -438,7 +464,7 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
             stop.deferring = True  # a signal now waits until the rows are committed and counted
             try:
                 for row in rows:
-                    _write_model(row, models_dir, store_dir)  # before its row: the row commits the job
+                    write_row_model(row, models_dir, store_dir)  # before its row: the row commits the job
                     store.write(row)
                     counts[row["status"]] += 1
                     if on_row is not None:
@@ -471,18 +497,3 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
     finally:
         store.close()
 
-
-def _write_model(row: dict, models_dir: str | None, store_dir: str) -> None:
-    """Write the model files a worker returned with ``row`` (and drop them from it)."""
-    from ._models import MODEL_FILES_KEY, write_model_files
-
-    files = row.pop(MODEL_FILES_KEY, None)
-    name = (row.get("extra") or {}).pop("model_name", None)
-    if files is None or models_dir is None or name is None:
-        return
-    path = os.path.join(models_dir, name)
-    write_model_files(path, files)
-    try:
-        row["extra"]["model_path"] = os.path.relpath(os.path.abspath(path), store_dir).replace(os.sep, "/")
-    except ValueError:  # another drive (Windows)
-        row["extra"]["model_path"] = os.path.abspath(path)

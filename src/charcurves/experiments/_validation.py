@@ -56,7 +56,16 @@ _DRAW_ORDER = ("x0", "v0", "A", "Omega")
 
 @dataclasses.dataclass(frozen=True)
 class ValidationCase:
-    """One validation condition and (optionally) the true trajectory on its horizon."""
+    """One validation condition and (optionally) the true trajectory on its horizon.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import ValidationCase, make_validation_cases
+    >>> from charcurves.systems import get_system
+    >>> case = make_validation_cases(get_system("duffing"), 1, seed=0, t_end=10.0, n_points=201)[0]
+    >>> isinstance(case, ValidationCase), case.t_end, case.t_eval.shape, sorted(case.to_dict())
+    (True, 10.0, (201,), ['A', 'Omega', 'n_points', 't_end', 'v0', 'x0'])
+    """
 
     x0: float
     v0: float
@@ -83,7 +92,16 @@ class ValidationCase:
 
 @dataclasses.dataclass(frozen=True)
 class ValidationSet(Sequence):
-    """Validation cases of one system with the box they were checked against."""
+    """Validation cases of one system with the box they were checked against.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import ValidationSet, make_validation_cases
+    >>> from charcurves.systems import get_system
+    >>> cases = make_validation_cases(get_system("duffing"), 2, seed=0, t_end=10.0, n_points=201)
+    >>> isinstance(cases, ValidationSet), len(cases), cases.system, sorted(cases.box)
+    (True, 2, 'duffing', ['v', 'x'])
+    """
 
     system: str
     cases: tuple[ValidationCase, ...]
@@ -103,7 +121,16 @@ class ValidationSet(Sequence):
 
 
 def training_box(traj) -> dict[str, tuple[float, float]]:
-    """``{"x": (min x, max x), "v": (min x', max x')}`` of a record with velocities."""
+    """``{"x": (min x, max x), "v": (min x', max x')}`` of a record with velocities.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import training_box
+    >>> from charcurves.systems import get_system
+    >>> box = training_box(get_system("duffing").simulate())
+    >>> {k: (round(lo, 2), round(hi, 2)) for k, (lo, hi) in box.items()}
+    {'x': (-1.5, 1.45), 'v': (-0.93, 0.98)}
+    """
     if traj.v is None:
         raise ConfigError("the training box needs the record's velocity; give a record with v")
     return {"x": (float(np.min(traj.x)), float(np.max(traj.x))),
@@ -153,6 +180,14 @@ def make_validation_cases(system, n_cases: int = 10, *, seed: int = 0, box: Mapp
     -------
     ValidationSet
         The cases (each with its true trajectory), the box, the number of attempts.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import make_validation_cases
+    >>> from charcurves.systems import get_system
+    >>> cases = make_validation_cases(get_system("duffing"), 2, seed=0, t_end=10.0, n_points=201)
+    >>> len(cases), cases[0].t_end, cases[0].x_true.shape
+    (2, 10.0, (201,))
     """
     name = _system_key(system)
     if ranges is None:
@@ -202,7 +237,17 @@ def cached_validation_cases(system, n_cases: int, *, seed: int, max_attempts: in
                             box: Mapping | None = None) -> ValidationSet:
     """:func:`make_validation_cases` with the default ranges and horizon, memoised per process
     (systems are frozen dataclasses, hence hashable), so the methods fitted to one dataset in a
-    process share the same cases without re-drawing them."""
+    process share the same cases without re-drawing them.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import cached_validation_cases
+    >>> from charcurves.systems import get_system
+    >>> wide = {"x": (-3.0, 3.0), "v": (-3.0, 3.0)}  # the box the true runs must stay in
+    >>> cases = cached_validation_cases(get_system("duffing"), 1, seed=0, box=wide)
+    >>> cached_validation_cases(get_system("duffing"), 1, seed=0, box=wide) is cases, cases[0].t_end
+    (True, 80.0)
+    """
     b = None if box is None else (tuple(map(float, box["x"])), tuple(map(float, box["v"])))
     return _cached_cases(system, int(n_cases), int(seed), int(max_attempts), b)
 
@@ -214,6 +259,18 @@ class CaseResult:
     ``t_sep``: first time with |x_model − x_true| > ε; when never exceeded, the last time the
     model reached (the horizon: ``censored`` is True; an earlier failure time otherwise, as the
     scripts count it). ``rmse_x``/``rmse_v``: over the horizon, NaN unless the run is ``ok``.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.experiments import CaseResult, evaluate_forward, make_validation_cases
+    >>> from charcurves.systems import get_system
+    >>> system = get_system("duffing")
+    >>> model = cc.fit(system.simulate(), method="parametric")
+    >>> cases = make_validation_cases(system, 1, seed=0, t_end=10.0, n_points=201)
+    >>> case = evaluate_forward(model, system, cases).cases[0]
+    >>> isinstance(case, CaseResult), case.status, case.censored, case.rmse_x < 1e-3
+    (True, 'ok', True, True)
     """
 
     case: ValidationCase
@@ -236,7 +293,19 @@ class CaseResult:
 
 @dataclasses.dataclass
 class ForwardEvaluation:
-    """Per-case results of :func:`evaluate_forward` and their summaries."""
+    """Per-case results of :func:`evaluate_forward` and their summaries.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.experiments import ForwardEvaluation, evaluate_forward, make_validation_cases
+    >>> from charcurves.systems import get_system
+    >>> system = get_system("duffing")
+    >>> model = cc.fit(system.simulate(), method="parametric")
+    >>> result = evaluate_forward(model, system, make_validation_cases(system, 2, seed=0, t_end=10.0, n_points=201))
+    >>> isinstance(result, ForwardEvaluation), sorted(result.summary())
+    (True, ['eps', 'n_cases', 'n_censored', 'n_failed_cases', 'rmse_x_mean', 'statuses', 't_sep_mean'])
+    """
 
     cases: list[CaseResult]
     eps: float
@@ -317,6 +386,17 @@ def evaluate_forward(model, system, cases, *, eps: float = 0.2, box_margin: floa
     Returns
     -------
     ForwardEvaluation
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.experiments import evaluate_forward, make_validation_cases
+    >>> from charcurves.systems import get_system
+    >>> system = get_system("duffing")
+    >>> model = cc.fit(system.simulate(), method="parametric")
+    >>> result = evaluate_forward(model, system, make_validation_cases(system, 2, seed=0, t_end=10.0, n_points=201))
+    >>> result.n_cases, result.n_failed, result.n_censored
+    (2, 0, 2)
     """
     from ..metrics import separation_time, trajectory_rmse
     from ..simulate import simulate_model

@@ -41,6 +41,16 @@ class Ensemble:
     record : Trajectory
         The record with the derivatives the fits used.
     kind : str
+
+    Examples
+    --------
+    >>> from charcurves.data import corrupt
+    >>> from charcurves.fitting import CharacteristicCurves, Ensemble, fit_ensemble
+    >>> from charcurves.systems import get_system
+    >>> record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
+    >>> ens = fit_ensemble(CharacteristicCurves(method="poly-cc"), record, 4)
+    >>> isinstance(ens, Ensemble), ens.kind, ens.curve_values("f2", [0.0, 1.0]).shape
+    (True, 'bootstrap', (4, 2))
     """
 
     point: FittedModel
@@ -61,7 +71,18 @@ def _check_members(n: int) -> int:
 
 
 def check_band_options(n, level: float) -> None:
-    """Refuse an ensemble size or band level that cannot work (ConfigError naming the fix)."""
+    """Refuse an ensemble size or band level that cannot work (ConfigError naming the fix).
+
+    Examples
+    --------
+    >>> from charcurves.fitting import check_band_options
+    >>> check_band_options(8, 0.95)
+    >>> try:
+    ...     check_band_options(2, 0.95)
+    ... except ValueError as exc:
+    ...     print(str(exc)[:55])
+    an ensemble needs at least 3 members to measure a sprea
+    """
     _check_members(n)
     if not isinstance(level, (int, float)) or not (0.0 < float(level) < 1.0):
         raise ConfigError(f"band level must be between 0 and 1 (e.g. 0.95), got {level!r}")
@@ -75,6 +96,17 @@ def bootstrap_records(record, model, n: int, *, random_state: int = 0) -> list:
     units and ``w = ±1`` at random per sample. Sign flips, rather than resampling residuals,
     keep each sample's own residual size (heteroscedastic noise, sticking phases). Several
     equations (two-dof) flip each equation's forcing column with the same sign per sample.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import bootstrap_records
+    >>> from charcurves.systems import get_system
+    >>> record = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
+    >>> copies = bootstrap_records(record, cc.fit(record, method="poly-cc"), 3, random_state=0)
+    >>> len(copies), bool(np.array_equal(copies[0].x, record.x)), bool(np.array_equal(copies[0].F, record.F))
+    (3, True, False)
     """
     if not hasattr(model, "force_residual"):
         raise ConfigError(f"a bootstrap needs the model's residual, which a {type(model).__name__} does not give; "
@@ -137,10 +169,10 @@ def fit_ensemble(estimator, record, n: int = 8, *, kind: str = "bootstrap", rand
 
     Examples
     --------
-    >>> from charcurves.fitting import CharacteristicCurves
-    >>> from charcurves.systems import get_system
     >>> from charcurves.data import corrupt
-    >>> record = corrupt(get_system("duffing").simulate(), 20, seed=0)
+    >>> from charcurves.fitting import CharacteristicCurves, fit_ensemble
+    >>> from charcurves.systems import get_system
+    >>> record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
     >>> ens = fit_ensemble(CharacteristicCurves(method="poly-cc"), record, 4)
     >>> len(ens.members)
     4
@@ -156,6 +188,17 @@ def fit_ensembles(estimator, records, n: int = 8, *, kind: str = "bootstrap",
 
     ``points``: models already fitted on ``records`` by ``estimator`` (e.g. a long post-SR
     fit), used as they are instead of fitting again.
+
+    Examples
+    --------
+    >>> from charcurves.data import corrupt
+    >>> from charcurves.fitting import CharacteristicCurves, fit_ensembles
+    >>> from charcurves.systems import get_system
+    >>> clean = get_system("duffing").simulate()
+    >>> records = [corrupt(clean, 20, seed=s) for s in (0, 1)]
+    >>> ensembles = fit_ensembles(CharacteristicCurves(method="poly-cc"), records, 3, kind="seeds")
+    >>> [len(e.members) for e in ensembles]
+    [3, 3]
     """
     n = _check_members(n)
     if kind not in ENSEMBLE_KINDS:

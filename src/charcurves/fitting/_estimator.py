@@ -78,8 +78,9 @@ class CharacteristicCurves:
 
     Examples
     --------
-    >>> from charcurves.systems import get_system
     >>> from charcurves.data import corrupt
+    >>> from charcurves.fitting import CharacteristicCurves
+    >>> from charcurves.systems import get_system
     >>> traj = corrupt(get_system("duffing").simulate(), 20, seed=0)
     >>> model = CharacteristicCurves(method="parametric").fit(traj).model_
     >>> round(model.curves["f1"].components().get("linear_slope", 0.3), 1)
@@ -349,5 +350,15 @@ class CharacteristicCurves:
 
 
 def fit(traj, method: str = "nn-cc+sym", **kwargs) -> FittedModel:
-    """Shortcut: ``CharacteristicCurves(method=method, **kwargs).fit(traj).model_``."""
+    """Shortcut: ``CharacteristicCurves(method=method, **kwargs).fit(traj).model_``.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.systems import get_system
+    >>> system = get_system("duffing")
+    >>> model = cc.fit(cc.corrupt(system.simulate(), 30, seed=0), method="poly-cc", symmetry="odd")
+    >>> model.method, {k: round(v, 3) for k, v in cc.curve_errors(model, system.true_curves()).items()}
+    ('poly-cc', {'f1': 0.001, 'f2': 0.002})
+    """
     return CharacteristicCurves(method=method, **kwargs).fit(traj).model_

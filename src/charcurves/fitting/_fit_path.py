@@ -41,6 +41,16 @@ def dry_friction_test(traj, template: EquationTemplate) -> tuple[float, float]:
     (degree 5), with and without sign(x'); the F statistic of the added column measures how much a
     jump explains beyond smooth curves. Smooth systems give F of order 1 whatever the noise level
     (their curves lie in the span), dry friction gives tens to thousands.
+
+    Examples
+    --------
+    >>> from charcurves.fitting import dry_friction_test
+    >>> from charcurves.systems import get_system
+    >>> from charcurves.templates import get_template
+    >>> F_smooth, _ = dry_friction_test(get_system("duffing").simulate(), get_template())
+    >>> F_dry, height = dry_friction_test(get_system("stick-slip").simulate(), get_template())
+    >>> F_smooth < 10 < F_dry, round(height, 2)
+    (True, 0.79)
     """
     velocity = template.velocity_curves
     if not velocity or template.n_equations != 1:

@@ -85,6 +85,19 @@ def harmonic_test(traj, template, syms: dict, candidates, jumps=()) -> dict[str,
     -------
     dict
         Curve name -> tuple of angular frequencies, for the curves that got any.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.data import Trajectory
+    >>> from charcurves.fitting import harmonic_test
+    >>> from charcurves.templates import get_template
+    >>> t = np.linspace(0, 60, 1000)
+    >>> x, v, a = 12 * np.sin(0.3 * t), 3.6 * np.cos(0.3 * t), -1.08 * np.sin(0.3 * t)
+    >>> record = Trajectory(t=t, x=x, F=a + 0.2 * v + 9.81 * np.sin(x), v=v, a=a)  # f2(x) = 9.81 sin x
+    >>> found = harmonic_test(record, get_template(), {"f1": "none", "f2": "none"}, ["f1", "f2"])
+    >>> {name: [round(w, 3) for w in freqs] for name, freqs in found.items()}  # sin(x) = sin(12 u), u = x / 12
+    {'f2': [12.0]}
     """
     D = template.design(traj)
     E, n = D["E"], D["n"]

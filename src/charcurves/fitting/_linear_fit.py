@@ -27,7 +27,14 @@ _INSTALL = "pip install 'charcurves[sindy]'"
 
 
 def l0_weight(threshold: float, nu: float = 1.0) -> float:
-    """pysindy 1.x l0 threshold -> pysindy 2.x ``reg_weight_lam`` (prox threshold sqrt(2 lam nu))."""
+    """pysindy 1.x l0 threshold -> pysindy 2.x ``reg_weight_lam`` (prox threshold sqrt(2 lam nu)).
+
+    Examples
+    --------
+    >>> from charcurves.fitting import l0_weight
+    >>> f"{l0_weight(1e-5):.3g}", f"{l0_weight(0.1, nu=0.5):.3g}"
+    ('5e-11', '0.01')
+    """
     return threshold**2 / (2.0 * nu)
 
 

@@ -49,7 +49,14 @@ _SRCC_OPTIONS = ("stick_tol", "outer_iterations", "inner_generations", "tol")
 
 
 def parse_symmetry(sym, curve_names=("f1", "f2")) -> dict[str, str]:
-    """``"f1=odd,f2=odd"`` / ``{"f1": "odd"}`` / ``"odd"`` (all curves) -> ``{"f1": "odd", "f2": "odd"}``."""
+    """``"f1=odd,f2=odd"`` / ``{"f1": "odd"}`` / ``"odd"`` (all curves) -> ``{"f1": "odd", "f2": "odd"}``.
+
+    Examples
+    --------
+    >>> from charcurves.fitting import parse_symmetry
+    >>> parse_symmetry("f1=odd"), parse_symmetry("odd"), parse_symmetry({"f2": "even"})
+    ({'f1': 'odd', 'f2': 'none'}, {'f1': 'odd', 'f2': 'odd'}, {'f1': 'none', 'f2': 'even'})
+    """
     out = {name: "none" for name in curve_names}
     if sym is None or sym == "":
         return out
@@ -83,6 +90,14 @@ def parse_basis_option(text, curve_names=("f1", "f2"), *, family: str = "separab
 
     None gives the default: the paper's Duffing basis for the separable family, a cubic
     polynomial per curve for the others.
+
+    Examples
+    --------
+    >>> from charcurves.fitting import parse_basis_option
+    >>> parse_basis_option("f1=z; f2=z, z**3")
+    {'f1': ['z'], 'f2': ['z', 'z**3']}
+    >>> parse_basis_option(None)
+    {'f1': ['z'], 'f2': ['z', 'z**3']}
     """
     from ..curves import parse_basis_function
 

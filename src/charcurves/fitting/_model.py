@@ -33,6 +33,16 @@ class FittedModel:
     offset : float          the equation's free constant b (0 when a curve absorbs it)
     loss : float            final data loss (mean squared force residual on the fitted samples)
     info : dict             training details (preset, seed, iterations, times, masks...)
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.systems import get_system
+    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
+    >>> isinstance(model, cc.FittedModel), list(model.curves), model.gain
+    (True, ['f1', 'f2'], 1.0)
+    >>> model.to_sympy(digits=3)
+    Eq(x(t)**3 - x(t) + 0.3*Derivative(x(t), t) + Derivative(x(t), (t, 2)), F(t))
     """
 
     def __init__(self, template: EquationTemplate, method: str, curves: dict[str, FittedCurve],
@@ -333,7 +343,21 @@ class FittedModel:
 
 
 def load_model(directory: str | os.PathLike) -> FittedModel:
-    """Read a model written by :meth:`FittedModel.save`; never executes code from the file."""
+    """Read a model written by :meth:`FittedModel.save`; never executes code from the file.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import charcurves as cc
+    >>> from charcurves.systems import get_system
+    >>> path = os.path.join(tempfile.mkdtemp(), "duffing-model")
+    >>> cc.fit(get_system("duffing").simulate(), method="poly-cc").save(path)
+    >>> sorted(os.listdir(path))
+    ['arrays.safetensors', 'model.json']
+    >>> model = cc.load_model(path)
+    >>> model.method, round(float(model.curves["f2"](2.0)), 6)
+    ('poly-cc', 6.0)
+    """
     import hashlib
 
     from safetensors.numpy import load as st_load

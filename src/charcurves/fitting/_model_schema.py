@@ -87,6 +87,23 @@ def validate_model_document(doc, jpath: str = _MODEL_JSON) -> None:
 
     The format and its version are checked first, so a file from a newer charcurves is reported as
     such rather than as a schema mismatch.
+
+    Examples
+    --------
+    >>> import json, os, tempfile
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import validate_model_document
+    >>> from charcurves.systems import get_system
+    >>> path = os.path.join(tempfile.mkdtemp(), "model")
+    >>> cc.fit(get_system("duffing").simulate(), method="parametric").save(path)
+    >>> with open(os.path.join(path, "model.json")) as fh:
+    ...     doc = json.load(fh)
+    >>> validate_model_document(doc)
+    >>> try:
+    ...     validate_model_document({**doc, "format_version": 99})
+    ... except cc.ModelFileError as exc:
+    ...     print(str(exc)[:60])
+    'model.json': model format version 99 is not supported by th
     """
     if not isinstance(doc, dict) or doc.get("format") != "charcurves-model":
         raise ModelFileError(f"{jpath!r} is not a charcurves model file (no \"format\": \"charcurves-model\"); "

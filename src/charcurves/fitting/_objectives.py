@@ -53,7 +53,17 @@ class _Objective:
 
 
 class EquationError(_Objective):
-    """Fit the equation to the derivatives of the record (given or estimated)."""
+    """Fit the equation to the derivatives of the record (given or estimated).
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.systems import get_system
+    >>> measured = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 30, on="state", seed=0)
+    >>> model = cc.fit(measured, method="parametric", objective=cc.EquationError())
+    >>> model.info["settings"]["objective"], model.curves["f2"].coefficients.round(2).tolist()
+    ('equation-error', [-1.0, 1.0])
+    """
 
     name = "equation-error"
 
@@ -88,6 +98,16 @@ class OutputError(_Objective):
         weights in the preset's groups, as the default equation-error training does, and every
         coefficient of a linear or closed-form curve in a group of its own (automatic relevance
         determination: terms the record does not support shrink to 0); otherwise a fixed tiny decay.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.systems import get_system
+    >>> measured = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 30, on="state", seed=0)
+    >>> objective = cc.OutputError(segment_length=16, substeps=1, max_iter=2)  # a short run
+    >>> model = cc.fit(measured, method="parametric", objective=objective)
+    >>> model.info["output_error"]["status"], model.curves["f2"].coefficients.round(2).tolist()
+    ('ok', [-1.0, 1.0])
     """
 
     name = "output-error"

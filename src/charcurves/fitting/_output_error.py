@@ -23,8 +23,7 @@ from .._errors import ConfigError, DataError
 from ._objectives import OutputError
 
 __all__ = ["free_run_diagnostics", "output_error_fit", "refine_output_error", "closed_form_text", "summary_lines",
-           "choose_substeps",
-           "choose_segment_length"]
+           "choose_substeps", "choose_segment_length"]
 
 
 def choose_substeps(x: np.ndarray) -> int:
@@ -104,6 +103,18 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     FittedModel
         The refitted model, or the input model when output error is not possible or does not
         improve; ``info["output_error"]`` says what happened either way.
+
+    Examples
+    --------
+    >>> from charcurves.data import corrupt
+    >>> from charcurves.fitting import CharacteristicCurves, OutputError, get_preset, output_error_fit, raw_fit
+    >>> from charcurves.systems import get_system
+    >>> measured = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 30, on="state", seed=0)
+    >>> [start], [prepared] = raw_fit(CharacteristicCurves(method="parametric"), [measured])
+    >>> settings = OutputError(segment_length=16, substeps=1, max_iter=2)  # a short run
+    >>> model = output_error_fit(start, prepared, measured, settings, preset=get_preset("default"))
+    >>> model.info["output_error"]["status"], model.curves["f2"].coefficients.round(2).tolist()
+    ('ok', [-1.0, 1.0])
     """
     import torch
 
@@ -307,7 +318,19 @@ def free_run_diagnostics(model, record):
     """``(t, measured x, free-run x)`` of a model refitted by output error on ``record`` (the
     measured positions, and one free run of the whole record from the initial state output error
     estimated, with its input hold and RK4 steps); None when output error did not run, for
-    templates other than the separable one, or when the record has no measured x."""
+    templates other than the separable one, or when the record has no measured x.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import free_run_diagnostics
+    >>> from charcurves.systems import get_system
+    >>> record = cc.corrupt(get_system("duffing").simulate(t_end=10.0, n_points=251), 30, on="state", seed=0)
+    >>> model = cc.fit(record, method="parametric", objective=cc.OutputError(segment_length=16, substeps=1, max_iter=2))
+    >>> t, x, x_free = free_run_diagnostics(model, record)
+    >>> t.shape == x.shape == x_free.shape, float(abs(x - x_free).max()) < 0.1
+    (True, True)
+    """
     from ..data import Trajectory
 
     oe = model.info.get("output_error") or {}
@@ -399,7 +422,20 @@ def _kept(model, report: dict, status: str):
 
 def refine_output_error(model, traj, *, hold: str = "linear", substeps: int = 4, segment_length: int = 256,
                         max_nfev: int = 60, time_budget: float = 600.0):
-    """Output error of a fitted model on its record (the older entry point; see :func:`output_error_fit`)."""
+    """Output error of a fitted model on its record (the older entry point; see :func:`output_error_fit`).
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import refine_output_error
+    >>> from charcurves.systems import get_system
+    >>> clean = get_system("duffing").simulate(t_end=20.0, n_points=500)
+    >>> record = cc.estimate_derivatives(cc.corrupt(clean, 30, on="state", seed=0))
+    >>> start = cc.fit(record, method="parametric")
+    >>> model = refine_output_error(start, record, substeps=1, segment_length=32, max_nfev=2)  # a short run
+    >>> model.info["output_error"]["status"], model.curves["f2"].coefficients.round(2).tolist()
+    ('ok', [-1.0, 1.0])
+    """
     from ._presets import get_preset
 
     settings = OutputError(segment_length=segment_length, substeps=substeps, hold=hold, max_iter=max_nfev,
@@ -410,7 +446,18 @@ def refine_output_error(model, traj, *, hold: str = "linear", substeps: int = 4,
 
 # ------------------------------------------------------------------------------ reporting (CLI)
 def closed_form_text(model, digits: int = 6) -> str:
-    """``x'' + f1(x') + f2(x) + b = g F`` with the closed forms written out (separable family)."""
+    """``x'' + f1(x') + f2(x) + b = g F`` with the closed forms written out (separable family).
+
+    Examples
+    --------
+    >>> from charcurves.curves import SymbolicFittedCurve
+    >>> from charcurves.fitting import FittedModel, closed_form_text
+    >>> from charcurves.templates import get_template
+    >>> curves = {"f1": SymbolicFittedCurve("f1", "x'", (-1, 1), "0.3*z"),
+    ...           "f2": SymbolicFittedCurve("f2", "x", (-2, 2), "z**3 - z")}
+    >>> closed_form_text(FittedModel(get_template(), "demo", curves, gain=1.0, offset=0.0, loss=0.0), digits=3)
+    "x'' + 0.3*x' + (x**3 - x) + 0 = 1*F"
+    """
     import sympy as sp
 
     parts = []
@@ -423,7 +470,18 @@ def closed_form_text(model, digits: int = 6) -> str:
 
 
 def summary_lines(model) -> list[str]:
-    """Lines for the CLI summary describing ``model.info["output_error"]``."""
+    """Lines for the CLI summary describing ``model.info["output_error"]``.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import summary_lines
+    >>> from charcurves.systems import get_system
+    >>> record = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 30, on="state", seed=0)
+    >>> model = cc.fit(record, method="parametric", objective=cc.OutputError(segment_length=16, substeps=1, max_iter=2))
+    >>> print(summary_lines(model)[0])
+    output-error refinement (hold linear, 1 RK4 step per sample, 33 segments of 16 samples; 2 iterations, status ok):
+    """
     oe = model.info.get("output_error", {})
     if not oe:
         return []

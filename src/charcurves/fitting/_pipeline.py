@@ -53,7 +53,18 @@ def differentiator_used(record, value, estimated: bool) -> str:
 
 
 def raw_fit(est, records, seeds=None):
-    """The equation-error fits alone (no post-SR, no output error) and the prepared records."""
+    """The equation-error fits alone (no post-SR, no output error) and the prepared records.
+
+    Examples
+    --------
+    >>> from charcurves.data import corrupt
+    >>> from charcurves.fitting import CharacteristicCurves, raw_fit
+    >>> from charcurves.systems import get_system
+    >>> measured = corrupt(get_system("duffing").simulate(), 30, on="state", seed=0)
+    >>> [model], [prepared] = raw_fit(CharacteristicCurves(method="parametric"), [measured])
+    >>> measured.has_derivatives, prepared.has_derivatives, "output_error" in model.info
+    (False, True, False)
+    """
     ctx = _fit_stage(est, list(records), seeds)
     return ctx["models"], ctx["prepared"]
 

@@ -27,9 +27,8 @@ def plot_curves(model, truth: dict[str, Callable] | None = None, *, axes=None, n
 
     Examples
     --------
-    >>> import matplotlib
-    >>> matplotlib.use("Agg")
     >>> import charcurves as cc
+    >>> from charcurves.fitting import plot_curves
     >>> from charcurves.systems import get_system
     >>> system = get_system("duffing")
     >>> model = cc.fit(system.simulate(), method="parametric")
@@ -75,7 +74,15 @@ def plot_curves(model, truth: dict[str, Callable] | None = None, *, axes=None, n
 
 
 def resolve_truth(truth) -> dict[str, Callable] | None:
-    """Truth curves from None, a mapping name -> callable, or a benchmark system's name (``"duffing"``)."""
+    """Truth curves from None, a mapping name -> callable, or a benchmark system's name (``"duffing"``).
+
+    Examples
+    --------
+    >>> from charcurves.fitting import resolve_truth
+    >>> truth = resolve_truth("duffing")
+    >>> sorted(truth), float(truth["f2"](2.0)), resolve_truth(None)
+    (['f1', 'f2'], 6.0, None)
+    """
     if truth is None:
         return None
     if isinstance(truth, Mapping):
@@ -112,6 +119,15 @@ def plot_model(model, ax=None, truth=None, *, bands: dict | None = None, label: 
     -------
     Axes or numpy array of Axes
         ``ax`` itself when one Axes was given, else one Axes per curve.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import plot_model
+    >>> from charcurves.systems import get_system
+    >>> axes = plot_model(cc.fit(get_system("duffing").simulate(), method="parametric"), truth="duffing")
+    >>> [ax.get_title() for ax in axes]
+    ["f1(x') = 0.3*x'", 'f2(x) = x**3 - x']
     """
     truth = resolve_truth(truth)
     n = len(model.curves)
@@ -146,6 +162,16 @@ def figure_png(model, truth=None, *, width: float = 3.3, height: float = 2.5, dp
     """The curves as PNG bytes (one panel per curve, ``width`` x ``height`` inches each).
 
     pyplot is not used, so a notebook does not show the figure a second time and no figure stays open.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import figure_png
+    >>> from charcurves.systems import get_system
+    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
+    >>> png = figure_png(model, truth="duffing", width=2.0, height=1.5, dpi=40)
+    >>> png[1:4], len(png) > 1000  # a PNG file
+    (b'PNG', True)
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure

@@ -114,6 +114,16 @@ def distill_model(model, *, sr_options: dict | None = None, random_state: int = 
         becomes the offset b). ``info`` keeps the old entries and adds ``post_sr`` (per curve:
         expression, front, timing, criterion), ``loss_before_distillation`` and
         ``post_sr_seconds``.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import distill_model
+    >>> from charcurves.systems import get_system
+    >>> model = cc.fit(get_system("duffing").simulate(), method="poly-cc", options={"degree": 3})
+    >>> closed = distill_model(model, sr_options={"generations": 5}, n=100)
+    >>> closed.to_sympy(curves=True, digits=3)
+    {'f1': 0.3*z, 'f2': z**3 - z}
     """
     t0 = time.perf_counter()
     engine = make_engine(sr_options)

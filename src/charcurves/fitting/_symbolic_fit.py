@@ -175,6 +175,20 @@ def fit_symbolic(record, template: EquationTemplate, reps: dict, *, method: str,
         ``constant``, ``decomposable_scripts``, ``operators`` and the SR digests; SR-CC also
         ``iterations`` and ``history``. When SR's expression has mixed terms, the curves are its
         separable terms with their coefficients refitted without the mixed terms.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.curves import Symbolic
+    >>> from charcurves.fitting import fit_symbolic
+    >>> from charcurves.systems import get_system
+    >>> from charcurves.templates import get_template
+    >>> record = get_system("duffing").simulate()
+    >>> reps = {"f1": Symbolic(joint=True), "f2": Symbolic(joint=True)}
+    >>> keep = np.ones(record.n_samples, dtype=bool)  # every sample (no sticking phases)
+    >>> model = fit_symbolic(record, get_template(), reps, method="sr", mask=keep, sr_options={"generations": 5})
+    >>> model.to_sympy(curves=True, digits=3)
+    {'f1': 0.3*z, 'f2': z**3 - z}
     """
     t0 = time.perf_counter()
     joint = {bool(getattr(r, "joint", False)) for r in reps.values()}
@@ -323,4 +337,27 @@ def _functional(joint: bool):
 
 
 fit_sr = _functional(True)
+"""SR of a prepared record on a template (see :func:`fit_symbolic`): ``CharacteristicCurves(method='sr')``.
+
+Examples
+--------
+>>> from charcurves.fitting import fit_sr
+>>> from charcurves.systems import get_system
+>>> from charcurves.templates import get_template
+>>> model = fit_sr(get_system("duffing").simulate(), get_template(), sr_options={"generations": 5})
+>>> model.method, model.to_sympy(curves=True, digits=3)
+('sr', {'f1': 0.3*z, 'f2': z**3 - z})
+"""
 fit_sr_cc = _functional(False)
+"""SR-CC of a prepared record on a template (see :func:`fit_symbolic`): ``CharacteristicCurves(method='sr-cc')``.
+
+Examples
+--------
+>>> from charcurves.fitting import fit_sr_cc
+>>> from charcurves.systems import get_system
+>>> from charcurves.templates import get_template
+>>> short = {"outer_iterations": 1, "inner_generations": 3}  # a short search
+>>> model = fit_sr_cc(get_system("duffing").simulate(), get_template(), options=short, sr_options={"generations": 3})
+>>> model.method, model.to_sympy(curves=True, digits=3)
+('sr-cc', {'f1': 0.3*z, 'f2': z**3 - z})
+"""

@@ -58,6 +58,16 @@ def parity_tests(ensemble, *, threshold: float = PARITY_THRESHOLD, n_grid: int =
     -------
     dict
         ``{name: {"proposal", "odd_stat", "even_stat", "range", "symmetric_halfwidth", "reason"}}``
+
+    Examples
+    --------
+    >>> from charcurves.data import corrupt
+    >>> from charcurves.fitting import CharacteristicCurves, fit_ensemble, parity_tests
+    >>> from charcurves.systems import get_system
+    >>> record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
+    >>> tests = parity_tests(fit_ensemble(CharacteristicCurves(method="poly-cc"), record, 8))
+    >>> {name: t["proposal"] for name, t in tests.items()}
+    {'f1': 'odd', 'f2': 'odd'}
     """
     point = ensemble.point
     family = getattr(point.template, "family", "")
@@ -138,10 +148,12 @@ def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, th
 
     Examples
     --------
-    >>> from charcurves.systems import get_system
     >>> from charcurves.data import corrupt
-    >>> tests = detect_symmetry(corrupt(get_system("duffing").simulate(), 20, seed=0))  # doctest: +SKIP
-    >>> tests["f1"]["proposal"], tests["f2"]["proposal"]  # doctest: +SKIP
+    >>> from charcurves.fitting import detect_symmetry
+    >>> from charcurves.systems import get_system
+    >>> record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
+    >>> tests = detect_symmetry(record, method="poly-cc")  # the default, "nn-cc", takes longer
+    >>> tests["f1"]["proposal"], tests["f2"]["proposal"]
     ('odd', 'odd')
     """
     from ._ensemble import fit_ensemble
@@ -186,6 +198,16 @@ def fit_many_auto(estimator, trajectories, seeds=None):
 
     A curve gets a parity only when every record proposes it. The decision and its statistics
     are stored in each model's ``info["symmetry_auto"]`` (and so in result.json).
+
+    Examples
+    --------
+    >>> from charcurves.data import corrupt
+    >>> from charcurves.fitting import CharacteristicCurves, fit_many_auto
+    >>> from charcurves.systems import get_system
+    >>> record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
+    >>> [model] = fit_many_auto(CharacteristicCurves(method="poly-cc", symmetry="auto"), [record])
+    >>> model.info["symmetry_auto"]["applied"], model.method
+    ({'f1': 'odd', 'f2': 'odd'}, 'poly-cc')
     """
     from ._estimator import CharacteristicCurves
     from ._methods import METHODS
@@ -228,7 +250,18 @@ def fit_many_auto(estimator, trajectories, seeds=None):
 
 
 def resolved_estimator(estimator, model):
-    """The estimator that ``symmetry="auto"`` ended up fitting with (itself when not auto)."""
+    """The estimator that ``symmetry="auto"`` ended up fitting with (itself when not auto).
+
+    Examples
+    --------
+    >>> from charcurves.data import corrupt
+    >>> from charcurves.fitting import CharacteristicCurves, resolved_estimator
+    >>> from charcurves.systems import get_system
+    >>> estimator = CharacteristicCurves(method="poly-cc", symmetry="auto")
+    >>> model = estimator.fit(corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)).model_
+    >>> resolved_estimator(estimator, model)
+    CharacteristicCurves(method='poly-cc', symmetry={'f1': 'odd', 'f2': 'odd'})
+    """
     report = model.info.get("symmetry_auto") if isinstance(model.info, dict) else None
     if not (isinstance(estimator.symmetry, str) and estimator.symmetry.strip().lower() == "auto") or not report:
         return estimator

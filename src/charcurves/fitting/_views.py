@@ -45,6 +45,7 @@ def display_expression(expr, domain: Sequence[float] | None = None, *, digits: i
 
     Examples
     --------
+    >>> from charcurves.fitting import display_expression
     >>> str(display_expression("-1.27e-17*z**10 + 0.999999999*z**2 - 1.000000001", (-1.5, 1.5)))
     'z**2 - 1'
     """
@@ -84,6 +85,7 @@ def format_closed_form(expr, domain: Sequence[float] | None = None, *, digits: i
 
     Examples
     --------
+    >>> from charcurves.fitting import format_closed_form
     >>> format_closed_form("0.299654627958613*z", (-1, 1), argument="x'")
     "0.2997*x'"
     """
@@ -104,6 +106,7 @@ def equation_text(model, *, digits: int = DISPLAY_DIGITS) -> str | None:
     Examples
     --------
     >>> import charcurves as cc
+    >>> from charcurves.fitting import equation_text
     >>> from charcurves.systems import get_system
     >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
     >>> equation_text(model)
@@ -136,7 +139,16 @@ def equation_text(model, *, digits: int = DISPLAY_DIGITS) -> str | None:
 
 
 def curve_scale(model) -> float:
-    """The largest magnitude any curve of ``model`` reaches over its training range (257 points each)."""
+    """The largest magnitude any curve of ``model`` reaches over its training range (257 points each).
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import curve_scale
+    >>> from charcurves.systems import get_system
+    >>> round(curve_scale(cc.fit(get_system("duffing").simulate(), method="parametric")), 2)
+    1.87
+    """
     peaks = [0.0]
     for c in model.curves.values():
         with np.errstate(all="ignore"):
@@ -148,7 +160,14 @@ def curve_scale(model) -> float:
 
 def display_number(value: float, scale: float, digits: int = DISPLAY_DIGITS):
     """``value`` as a sympy number rounded to ``digits`` significant digits; 0 when it is below
-    ``10**-digits * scale`` (a constant that changes no printed digit of terms of size ``scale``)."""
+    ``10**-digits * scale`` (a constant that changes no printed digit of terms of size ``scale``).
+
+    Examples
+    --------
+    >>> from charcurves.fitting import display_number
+    >>> display_number(0.299654627958613, 1.0), display_number(2.0000001, 1.0), display_number(3e-9, 6.0)
+    (0.2997, 2, 0)
+    """
     import sympy as sp
 
     value = float(value)
@@ -169,6 +188,7 @@ def curve_lines(model, *, digits: int = DISPLAY_DIGITS) -> list[str]:
     Examples
     --------
     >>> import charcurves as cc
+    >>> from charcurves.fitting import curve_lines
     >>> from charcurves.systems import get_system
     >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
     >>> curve_lines(model)[0]
@@ -199,6 +219,7 @@ def fit_statistics(model) -> list[tuple[str, str]]:
     Examples
     --------
     >>> import charcurves as cc
+    >>> from charcurves.fitting import fit_statistics
     >>> from charcurves.systems import get_system
     >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
     >>> dict(fit_statistics(model))["gain g"]
@@ -223,7 +244,17 @@ def fit_statistics(model) -> list[tuple[str, str]]:
 
 def settings_rows(model) -> list[tuple[str, str]]:
     """The settings that shaped the answer (``model.info["settings"]``) as ``(setting, value)`` rows;
-    empty for a model fitted before they were recorded."""
+    empty for a model fitted before they were recorded.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import settings_rows
+    >>> from charcurves.systems import get_system
+    >>> rows = dict(settings_rows(cc.fit(get_system("duffing").simulate(), method="poly-cc", symmetry="odd")))
+    >>> rows["symmetry"], rows["gauge"], rows["objective"]
+    ('f1 odd, f2 odd', 'f2(0) = 0', 'equation-error (asked: auto)')
+    """
     st = _settings(model)
     if not st:
         return []
@@ -245,7 +276,18 @@ def settings_rows(model) -> list[tuple[str, str]]:
 
 def output_error_rows(model) -> list[tuple[str, str]]:
     """The output-error refinement (``model.info["output_error"]``): status, how the free runs were
-    simulated, and the free-run RMSE before and after; empty when there was none."""
+    simulated, and the free-run RMSE before and after; empty when there was none.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import output_error_rows
+    >>> from charcurves.systems import get_system
+    >>> record = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 30, on="state", seed=0)
+    >>> model = cc.fit(record, method="parametric", objective=cc.OutputError(segment_length=16, substeps=1, max_iter=2))
+    >>> output_error_rows(model)[:2]
+    [('status', 'ok'), ('free runs', 'hold linear, 1 RK4 step per sample, 33 segments of 16 samples, 2 iterations')]
+    """
     oe = model.info.get("output_error") or {}
     if not isinstance(oe, dict) or not oe:
         return []
@@ -271,6 +313,7 @@ def model_html(model, *, figure: bool = True, truth=None) -> str:
     Examples
     --------
     >>> import charcurves as cc
+    >>> from charcurves.fitting import model_html
     >>> from charcurves.systems import get_system
     >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
     >>> "f1(x&#x27;) = 0.3*x&#x27;" in model_html(model, figure=False)

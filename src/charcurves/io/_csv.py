@@ -51,6 +51,15 @@ def read_csv_columns(path: str | os.PathLike) -> dict[str, np.ndarray]:
     Columns with an empty name and no values (a trailing comma on every line) are dropped.
     Raises :class:`DataError` for empty, binary or unreadable files, ragged rows and
     non-numeric cells, naming the row (1-based line number in the file) and column.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from charcurves.io import read_csv_columns
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "record.csv"
+    >>> _ = path.write_text("t,x,F\\n0.0,1.0,0.5\\n0.1,0.9,0.4\\n")
+    >>> read_csv_columns(path)["x"].tolist()
+    [1.0, 0.9]
     """
     p = os.fspath(path)
     text = _read_text(p)
@@ -123,7 +132,17 @@ def _is_number(s: str) -> bool:
 
 
 def current_umask() -> int:
-    """The process's umask (from /proc on Linux, else by setting and restoring it)."""
+    """The process's umask (from /proc on Linux, else by setting and restoring it).
+
+    Examples
+    --------
+    >>> import os
+    >>> from charcurves.io import current_umask
+    >>> mask = os.umask(0o027)
+    >>> oct(current_umask())
+    '0o27'
+    >>> _ = os.umask(mask)
+    """
     try:
         with open("/proc/self/status", encoding="ascii") as fh:
             for line in fh:
@@ -138,7 +157,18 @@ def current_umask() -> int:
 
 def make_temp_dir(parent: str | os.PathLike, prefix: str = ".tmp-") -> str:
     """``tempfile.mkdtemp`` in ``parent``, but with the permissions a plain ``mkdir`` gets
-    (0777 & ~umask) instead of 0700, for a folder that is renamed into place."""
+    (0777 & ~umask) instead of 0700, for a folder that is renamed into place.
+
+    Examples
+    --------
+    >>> import os, stat, tempfile
+    >>> from charcurves.io import current_umask, make_temp_dir
+    >>> path = make_temp_dir(tempfile.mkdtemp(), prefix=".tmp-model-")
+    >>> os.path.basename(path).startswith(".tmp-model-")
+    True
+    >>> stat.S_IMODE(os.stat(path).st_mode) == 0o777 & ~current_umask()
+    True
+    """
     path = tempfile.mkdtemp(dir=os.fspath(parent), prefix=prefix)
     os.chmod(path, 0o777 & ~current_umask())
     return path
@@ -146,7 +176,17 @@ def make_temp_dir(parent: str | os.PathLike, prefix: str = ".tmp-") -> str:
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file and ``os.replace``; the file gets the
-    permissions a plain ``open`` would give (0666 & ~umask), not the temporary file's 0600."""
+    permissions a plain ``open`` would give (0666 & ~umask), not the temporary file's 0600.
+
+    Examples
+    --------
+    >>> import os, pathlib, stat, tempfile
+    >>> from charcurves.io import atomic_write_bytes, current_umask
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "result.json"
+    >>> atomic_write_bytes(path, b'{"ok": true}')
+    >>> path.read_bytes(), stat.S_IMODE(path.stat().st_mode) == 0o666 & ~current_umask()
+    (b'{"ok": true}', True)
+    """
     p = os.fspath(path)
     if os.path.isdir(p):
         raise IsADirectoryError(errno.EISDIR, "is a directory, not a file", p)
@@ -168,7 +208,15 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
 
 def json_safe(obj: Any) -> Any:
     """``obj`` with plain JSON types only: numpy scalars and arrays as numbers and lists, tuples as
-    lists, and every non-finite float (NaN, ±Infinity, which standard JSON lacks) as None."""
+    lists, and every non-finite float (NaN, ±Infinity, which standard JSON lacks) as None.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.io import json_safe
+    >>> json_safe({"rmse": np.float64(0.5), "x": np.array([1.0, np.nan]), "range": (0, np.inf)})
+    {'rmse': 0.5, 'x': [1.0, None], 'range': [0, None]}
+    """
     if isinstance(obj, dict):
         return {str(k): json_safe(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -182,7 +230,14 @@ def json_safe(obj: Any) -> Any:
 
 def non_finite_paths(obj: Any, path: str = "") -> list[str]:
     """Dotted paths of the non-finite numbers in ``obj`` (what :func:`json_bytes` writes as null),
-    e.g. ``["rmse", "segments[1].rmse"]``; for a status field beside them."""
+    e.g. ``["rmse", "segments[1].rmse"]``; for a status field beside them.
+
+    Examples
+    --------
+    >>> from charcurves.io import non_finite_paths
+    >>> non_finite_paths({"rmse": float("nan"), "segments": [{"rmse": 0.1}, {"rmse": float("inf")}]})
+    ['rmse', 'segments[1].rmse']
+    """
     if isinstance(obj, dict):
         return [p for k, v in obj.items() for p in non_finite_paths(v, f"{path}.{k}" if path else str(k))]
     if isinstance(obj, (list, tuple)):
@@ -197,12 +252,32 @@ def non_finite_paths(obj: Any, path: str = "") -> list[str]:
 def json_bytes(obj: Any, indent: int | None = 1) -> bytes:
     """Standard JSON (RFC 8259) as UTF-8 bytes: non-finite numbers become ``null`` (never the bare
     ``NaN``/``Infinity`` that ``json.dumps`` writes by default); name them beside it with
-    :func:`non_finite_paths` or a status field."""
+    :func:`non_finite_paths` or a status field.
+
+    Examples
+    --------
+    >>> from charcurves.io import json_bytes
+    >>> json_bytes({"loss": 0.25, "rmse": float("nan")}, indent=None)
+    b'{"loss": 0.25, "rmse": null}'
+    """
     return json.dumps(json_safe(obj), indent=indent, allow_nan=False).encode("utf-8")
 
 
 def write_csv_columns(path: str | os.PathLike, columns: dict[str, np.ndarray]) -> None:
-    """Write equal-length columns with a header, full float precision, atomically."""
+    """Write equal-length columns with a header, full float precision, atomically.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> import numpy as np
+    >>> from charcurves.io import write_csv_columns
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "record.csv"
+    >>> write_csv_columns(path, {"t": np.array([0.0, 0.1]), "x": np.array([1.0, 1 / 3])})
+    >>> print(path.read_text())
+    t,x
+    0,1
+    0.10000000000000001,0.33333333333333331
+    """
     names = list(columns)
     data = np.column_stack([np.asarray(columns[k], dtype=float) for k in names])
     buf = io.StringIO()

@@ -13,7 +13,19 @@ __all__ = ["separation_time", "trajectory_rmse", "largest_lyapunov_exponent"]
 
 def separation_time(t, x_model, x_true, *, eps: float = 0.2) -> tuple[float, bool]:
     """First time with ``|x_model - x_true| > eps`` (strict, as the authors' scripts) and whether
-    the value is censored (never separated: the last available time is returned)."""
+    the value is censored (never separated: the last available time is returned).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.metrics import separation_time
+    >>> t = np.linspace(0, 10, 101)
+    >>> t_sep, censored = separation_time(t, np.sin(t) + 0.05 * t, np.sin(t), eps=0.2)
+    >>> round(t_sep, 3), censored
+    (4.1, False)
+    >>> separation_time(t, np.sin(t), np.sin(t))  # never separated: censored at the last time
+    (10.0, True)
+    """
     t = np.asarray(t, dtype=float)
     n = min(len(x_model), len(x_true), len(t))
     d = np.abs(np.asarray(x_model[:n], dtype=float) - np.asarray(x_true[:n], dtype=float))
@@ -25,7 +37,16 @@ def separation_time(t, x_model, x_true, *, eps: float = 0.2) -> tuple[float, boo
 
 
 def trajectory_rmse(x_model, x_true) -> float:
-    """Root-mean-square difference over the samples both trajectories have."""
+    """Root-mean-square difference over the samples both trajectories have.
+
+    Examples
+    --------
+    >>> from charcurves.metrics import trajectory_rmse
+    >>> trajectory_rmse([0.0, 1.0, 2.0, 3.0], [0.0, 1.0, 2.0])  # over the 3 samples both have
+    0.0
+    >>> round(trajectory_rmse([1.0, 2.0], [0.0, 0.0]), 6)
+    1.581139
+    """
     n = min(len(x_model), len(x_true))
     d = np.asarray(x_model[:n], dtype=float) - np.asarray(x_true[:n], dtype=float)
     return float(np.sqrt(np.mean(d * d))) if n else float("nan")
@@ -85,6 +106,16 @@ def largest_lyapunov_exponent(f1: Callable, f2: Callable, forcing: Callable, x0:
     -----
     The tangent dynamics need differentiable curves: a model whose friction has a jump at
     zero velocity (dry friction) has no Lyapunov exponent in this sense.
+
+    Examples
+    --------
+    The free oscillator x'' + 0.2 x' + x = 0 decays like exp(-0.1 t), so its exponent is -0.1:
+
+    >>> from charcurves.metrics import largest_lyapunov_exponent
+    >>> lam = largest_lyapunov_exponent(lambda v: 0.2 * v, lambda x: x, lambda t: 0.0, 1.0, 0.0,
+    ...                                 t_transient=5.0, t_total=40.0)
+    >>> round(float(lam), 2)
+    -0.1
     """
     from scipy.integrate import solve_ivp
 

@@ -86,6 +86,7 @@ def ensemble_rmse(values: Sequence[float] | np.ndarray, how: str = "rms") -> flo
 
     Examples
     --------
+    >>> from charcurves.metrics import ensemble_rmse
     >>> ensemble_rmse([1.0, 7.0], how="rms"), ensemble_rmse([1.0, 7.0], how="mean")
     (5.0, 4.0)
     """
@@ -117,6 +118,7 @@ def ensemble_by_level(levels: Sequence[float] | np.ndarray, values: Sequence[flo
 
     Examples
     --------
+    >>> from charcurves.metrics import ensemble_by_level
     >>> lv, ens, n = ensemble_by_level([20, 20, 0, 0], [1.0, 3.0, 2.0, 2.0], how="mean")
     >>> lv.tolist(), ens.tolist(), n.tolist()
     ([20.0, 0.0], [2.0, 2.0], [2, 2])
@@ -176,6 +178,7 @@ def fit_slope_one(eta: Sequence[float] | np.ndarray, rmse: Sequence[float] | np.
 
     Examples
     --------
+    >>> from charcurves.metrics import fit_slope_one
     >>> round(fit_slope_one([0.1, 1.0], [0.02, 0.08]), 6)   # exp(mean(log 0.2, log 0.08))
     0.126491
     """
@@ -206,6 +209,7 @@ def fit_bias(eta: Sequence[float] | np.ndarray, rmse: Sequence[float] | np.ndarr
     Examples
     --------
     >>> import numpy as np
+    >>> from charcurves.metrics import fit_bias
     >>> eta = np.logspace(-2, 1, 31)
     >>> b, A = fit_bias(eta, np.sqrt(0.2**2 + (0.3 * eta) ** 2))
     >>> round(b, 6), round(A, 6)
@@ -251,6 +255,7 @@ def performance_percent(a_method: Mapping[str, float], a_reference: Mapping[str,
 
     Examples
     --------
+    >>> from charcurves.metrics import performance_percent
     >>> performance_percent({"f1": 0.1, "f2": 0.04}, {"f1": 0.01, "f2": 0.02})
     30.0
     """
@@ -292,6 +297,13 @@ class MIWResult:
         the 99 % confidence interval of the bin's mean (the scripts' definition).
     n_bins : int
     bin_centers, ranges, half_widths, counts : numpy arrays per bin
+
+    Examples
+    --------
+    >>> from charcurves.metrics import MIWResult, miw
+    >>> result = miw([0.0, 0.001, 0.03, 0.031], [0.0, 0.2, 1.0, 1.4])
+    >>> isinstance(result, MIWResult), result.n_bins, result.counts.tolist()
+    (True, 2, [2, 2])
     """
 
     miw_range: float
@@ -322,6 +334,7 @@ def miw(z, residuals, *, bin_width: float = 0.03, confidence: float = 0.99) -> M
 
     Examples
     --------
+    >>> from charcurves.metrics import miw
     >>> r = miw([0.0, 0.001, 0.03, 0.031], [0.0, 0.2, 1.0, 1.4])
     >>> round(r.miw_range, 6)
     0.3
@@ -379,6 +392,17 @@ def curve_residuals(model, traj, truth: Mapping[str, Callable] | Callable, curve
     -------
     (z, r) : two arrays
         The curve's argument at the samples and the residuals there.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.metrics import curve_residuals
+    >>> from charcurves.systems import get_system
+    >>> system = get_system("duffing")
+    >>> record = cc.corrupt(system.simulate(), 20, seed=0)
+    >>> z, r = curve_residuals(cc.fit(record, method="poly-cc"), record, system.true_curves(), curve="f2")
+    >>> z.shape, round(float(abs(r).max()), 3)
+    ((1000,), 0.032)
     """
     f_true = truth[curve] if isinstance(truth, Mapping) else truth
     z = np.asarray(model.template.arguments_of(traj)[curve], dtype=float)

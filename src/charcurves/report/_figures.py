@@ -11,7 +11,17 @@ __all__ = ["plot_free_run"]
 def plot_free_run(t, measured, simulated, *, axes=None, title: str | None = None):
     """Diagnostics of a model refitted by output error: the measured x against one free run of the
     model over the whole record (top), and their difference (bottom). ``axes``: two axes, or None
-    for a new figure. Returns the figure."""
+    for a new figure. Returns the figure.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.report import plot_free_run
+    >>> t = np.linspace(0, 10, 201)
+    >>> fig = plot_free_run(t, np.sin(t), np.sin(t) + 0.01 * t, title="free run")
+    >>> [ax.get_ylabel() for ax in fig.axes]
+    ['x', 'free run - measured']
+    """
     t, measured, simulated = (np.asarray(a, dtype=float) for a in (t, measured, simulated))
     if axes is None:
         import matplotlib.pyplot as plt

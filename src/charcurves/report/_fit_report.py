@@ -25,6 +25,7 @@ def versions() -> dict[str, str]:
 
     Examples
     --------
+    >>> from charcurves.report import versions
     >>> sorted(versions())
     ['charcurves', 'numpy', 'python', 'torch']
     """
@@ -47,6 +48,18 @@ def load_fit(path: str | os.PathLike):
     ``path`` is the folder ``charcurves fit --out`` wrote (with ``model/`` and ``result.json``) or a
     model folder itself (``model.json``; when it is named ``model``, the ``result.json`` beside it is read too). The
     bands stored in ``result.json`` are attached to the model so that its figure draws them.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import charcurves as cc
+    >>> from charcurves.report import load_fit
+    >>> from charcurves.systems import get_system
+    >>> path = os.path.join(tempfile.mkdtemp(), "model")
+    >>> cc.fit(get_system("duffing").simulate(), method="poly-cc").save(path)
+    >>> model, result = load_fit(path)  # a model folder: no result.json beside it
+    >>> model.method, result
+    ('poly-cc', None)
     """
     p = os.fspath(path)
     if not os.path.isdir(p):
@@ -92,6 +105,7 @@ def fit_report(model, *, result: dict | None = None, truth=None, title: str | No
     Examples
     --------
     >>> import charcurves as cc
+    >>> from charcurves.report import fit_report
     >>> from charcurves.systems import get_system
     >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
     >>> page = fit_report(model, truth="duffing").to_html()
@@ -171,7 +185,21 @@ def fit_report(model, *, result: dict | None = None, truth=None, title: str | No
 
 
 def write_fit_report(path: str | os.PathLike, out: str | os.PathLike, *, truth=None) -> str:
-    """Write the report of the fit in ``path`` (see :func:`load_fit`) to the HTML file ``out``; returns ``out``."""
+    """Write the report of the fit in ``path`` (see :func:`load_fit`) to the HTML file ``out``; returns ``out``.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import charcurves as cc
+    >>> from charcurves.report import write_fit_report
+    >>> from charcurves.systems import get_system
+    >>> folder = tempfile.mkdtemp()
+    >>> cc.fit(get_system("duffing").simulate(), method="parametric").save(os.path.join(folder, "model"))
+    >>> out = write_fit_report(os.path.join(folder, "model"), os.path.join(folder, "report.html"))
+    >>> with open(out, encoding="utf-8") as fh:
+    ...     print("<h1>" in fh.read())
+    True
+    """
     from ..io import atomic_write_bytes
 
     model, result = load_fit(path)

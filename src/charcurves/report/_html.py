@@ -56,6 +56,17 @@ class Report:
     ----------
     title : str
         The page title (first heading).
+
+    Examples
+    --------
+    >>> from charcurves.report import Report
+    >>> rep = Report("Duffing study")
+    >>> rep.heading("Numbers")
+    >>> rep.table(["method", "A"], [["parametric", 0.0109]], caption="A values")
+    >>> print(rep.to_markdown().splitlines()[0])
+    # Duffing study
+    >>> "<td>parametric</td>" in rep.to_html()
+    True
     """
 
     def __init__(self, title: str):

@@ -66,6 +66,15 @@ def plot_rmse_vs_noise(series: Mapping[str, tuple[Sequence[float] | np.ndarray, 
         ``{label: A}``: dashed lines ``A η`` in the method's colour.
     bias_fits : mapping, optional
         ``{label: (bias, A)}``: dotted curves ``sqrt(bias² + (A η)²)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.report import plot_rmse_vs_noise
+    >>> eta = 10 ** (-np.array([40.0, 20.0, 0.0]) / 20)
+    >>> ax = plot_rmse_vs_noise({"parametric": (eta, 0.02 * eta)}, fits={"parametric": 0.02})
+    >>> ax.get_xscale(), ax.get_yscale()
+    ('log', 'log')
     """
     ax = _axes(ax)
     all_eta, all_r = [], []
@@ -102,7 +111,17 @@ def plot_rmse_vs_noise(series: Mapping[str, tuple[Sequence[float] | np.ndarray, 
 def plot_tsep_vs_noise(series: Mapping[str, tuple[Sequence[float] | np.ndarray, Sequence[float] | np.ndarray]], *,
                        ax=None,
                        lyapunov_time: float | None = None, horizon: float | None = 80.0, title: str | None = None):
-    """Mean separation time per method against η, with the Lyapunov time as a red dashed line."""
+    """Mean separation time per method against η, with the Lyapunov time as a red dashed line.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.report import plot_tsep_vs_noise
+    >>> eta = 10 ** (-np.array([40.0, 20.0, 0.0]) / 20)
+    >>> ax = plot_tsep_vs_noise({"parametric": (eta, [60.0, 35.0, 12.0])}, lyapunov_time=9.5)
+    >>> [line.get_label() for line in ax.get_lines()]
+    ['parametric', 'T_L = 9.50', 'horizon 80 s']
+    """
     ax = _axes(ax)
     drawn, etas = 0, []
     for i, (label, (eta, tsep)) in enumerate(series.items()):
@@ -134,7 +153,18 @@ def plot_forward(t: Sequence[float] | np.ndarray, x_true: Sequence[float] | np.n
                  models: Mapping[str, tuple[Sequence[float] | np.ndarray, Sequence[float] | np.ndarray]], *, ax=None,
                  eps: float | None = 0.2, title: str | None = None):
     """The true x(t) (black) and each model's forward integration (``{label: (t, x)}``; a model
-    that failed early is drawn up to where it stopped)."""
+    that failed early is drawn up to where it stopped).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.report import plot_forward
+    >>> t = np.linspace(0, 10, 201)
+    >>> runs = {"model A": (t, np.sin(t) + 0.02 * t), "model B": (t[:100], np.sin(t[:100]))}  # B stopped at t = 5
+    >>> ax = plot_forward(t, np.sin(t), runs)
+    >>> [line.get_label() for line in ax.get_lines()]
+    ['truth', 'model A', 'model B']
+    """
     ax = _axes(ax, (7.0, 3.0))
     t = np.asarray(t, float)
     ax.plot(t, np.asarray(x_true, float), "k-", lw=1.6, label="truth")
@@ -154,7 +184,17 @@ def plot_phase_space(x: Sequence[float] | np.ndarray, v: Sequence[float] | np.nd
                      others: Sequence[tuple[Sequence[float] | np.ndarray, Sequence[float] | np.ndarray]] = (),
                      title: str | None = None):
     """Phase portrait: the training trajectory (or validation trajectories in ``others``), with
-    the training box shaded grey as in the paper's Fig. 7."""
+    the training box shaded grey as in the paper's Fig. 7.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.report import plot_phase_space
+    >>> t = np.linspace(0, 10, 201)
+    >>> ax = plot_phase_space(np.sin(t), np.cos(t), box={"x": (-1.0, 1.0), "v": (-1.0, 1.0)})
+    >>> ax.get_xlabel(), ax.get_ylabel()
+    ('x', "x'")
+    """
     ax = _axes(ax, (4.5, 4.0))
     if box is not None:
         from matplotlib.patches import Rectangle
@@ -177,7 +217,16 @@ def plot_performance(series: Mapping[str, Mapping[str, float]], paper: Mapping[s
                      ax=None, title: str | None = None, ylim: float | None = None):
     """Performance % per method (paper Figs. 9, 13): one filled bar per series (e.g. per training
     preset, ``{label: {method: %}}``) and the paper's values as hatched bars beside; a method
-    without a value gets no bar ("n/a" over the first series)."""
+    without a value gets no bar ("n/a" over the first series).
+
+    Examples
+    --------
+    >>> from charcurves.report import plot_performance
+    >>> ours = {"default": {"parametric": 100.0, "nn-cc": 62.0}}
+    >>> ax = plot_performance(ours, paper={"parametric": 100.0, "nn-cc": 55.0})
+    >>> [tick.get_text() for tick in ax.get_xticklabels()]
+    ['parametric', 'nn-cc']
+    """
     names: list[str] = []
     for values in list(series.values()) + [paper or {}]:
         for m in values:

@@ -18,6 +18,16 @@ def curve_bands(ensemble: Ensemble, *, level: float = 0.95, n_grid: int = 200) -
     ``sd`` is the members' standard deviation at each grid point and ``z`` the two-sided normal
     quantile of ``level``; with few members a normal band is steadier than member quantiles.
     Returns ``{name: {"z", "lo", "hi", "center", "sd", "level", "members", "kind"}}`` (lists).
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.selection import curve_bands, fit_ensemble
+    >>> from charcurves.systems import get_system
+    >>> record = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
+    >>> bands = curve_bands(fit_ensemble(cc.CharacteristicCurves(method="poly-cc"), record, 4), level=0.95)
+    >>> sorted(bands), len(bands["f2"]["z"]), bands["f2"]["members"]
+    (['f1', 'f2'], 200, 4)
     """
     if not (0.0 < float(level) < 1.0):
         raise ConfigError(f"band level must be between 0 and 1 (e.g. 0.95), got {level!r}")
@@ -46,7 +56,19 @@ def curve_bands(ensemble: Ensemble, *, level: float = 0.95, n_grid: int = 200) -
 
 
 def attach_bands(model, bands: dict) -> None:
-    """Keep ``bands`` with the model: ``result_dict`` writes them and ``plot_curves`` draws them."""
+    """Keep ``bands`` with the model: ``result_dict`` writes them and ``plot_curves`` draws them.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.selection import attach_bands, curve_bands, fit_ensemble
+    >>> from charcurves.systems import get_system
+    >>> record = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
+    >>> ensemble = fit_ensemble(cc.CharacteristicCurves(method="poly-cc"), record, 3)
+    >>> attach_bands(ensemble.point, curve_bands(ensemble))
+    >>> sorted(ensemble.point.bands)  # result_dict() writes them, plot_curves draws them
+    ['f1', 'f2']
+    """
     model.bands = bands
 
 
@@ -55,6 +77,17 @@ def band_coverage(bands: dict, truth: dict, *, names: Sequence[str] | None = Non
 
     Only meaningful where the gauge of the truth matches the fit's (the separable family's
     f2(0) = 0 holds for the benchmark systems).
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.selection import band_coverage, curve_bands, fit_ensemble
+    >>> from charcurves.systems import get_system
+    >>> system = get_system("duffing")
+    >>> record = cc.corrupt(system.simulate(), 20, seed=0)
+    >>> bands = curve_bands(fit_ensemble(cc.CharacteristicCurves(method="poly-cc"), record, 4))
+    >>> {name: cover > 0.5 for name, cover in band_coverage(bands, system.true_curves()).items()}
+    {'f1': True, 'f2': True}
     """
     out = {}
     for name in names or bands:

@@ -20,7 +20,16 @@ __all__ = ["SelectionReport", "select_family", "split_record"]
 # --------------------------------------------------------------------------- the search
 def split_record(record, parts: int = 2) -> list:
     """Consecutive segments of one record, used as independent trajectories (each starts from
-    another state of the system)."""
+    another state of the system).
+
+    Examples
+    --------
+    >>> from charcurves.selection import split_record
+    >>> from charcurves.systems import get_system
+    >>> halves = split_record(get_system("duffing").simulate(), 2)
+    >>> [(h.n_samples, round(float(h.t[0]), 2)) for h in halves]
+    [(500, 0.0), (500, 20.02)]
+    """
     n = record.n_samples
     edges = np.linspace(0, n, parts + 1).astype(int)
     return [record.slice(slice(int(a), int(b))) for a, b in zip(edges[:-1], edges[1:])]
@@ -28,7 +37,20 @@ def split_record(record, parts: int = 2) -> list:
 
 @dataclasses.dataclass
 class SelectionReport:
-    """Verdicts of :func:`select_family`, one row per family in the order tried."""
+    """Verdicts of :func:`select_family`, one row per family in the order tried.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.selection import SelectionReport, select_family, split_record
+    >>> from charcurves.systems import get_system
+    >>> halves = split_record(cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0), 2)
+    >>> report = select_family(halves, ["separable"], method="poly-cc", n_members=3, snr_db=20)
+    >>> isinstance(report, SelectionReport), report.accepted
+    (True, 'separable')
+    >>> print(report.table().splitlines()[-1])
+    accepted: separable
+    """
 
     rows: list
     accepted: str | None
@@ -113,6 +135,16 @@ def select_family(trajectories: Sequence, families: Sequence[str] = DEFAULT_FAMI
     Returns
     -------
     SelectionReport
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.selection import select_family, split_record
+    >>> from charcurves.systems import get_system
+    >>> halves = split_record(cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0), 2)
+    >>> report = select_family(halves, ["separable", "position-damping"], method="poly-cc", n_members=3, snr_db=20)
+    >>> report.accepted, [row["verdict"] for row in report.rows]
+    ('separable', ['accepted', 'not tested'])
     """
     import time
 

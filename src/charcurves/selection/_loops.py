@@ -46,7 +46,18 @@ DEFAULT_FAMILIES = ("separable", "position-damping")
 # --------------------------------------------------------------------------- loop results
 @dataclasses.dataclass
 class LoopResult:
-    """Outcome of one loop: passed, the statistic, its threshold and the figures behind it."""
+    """Outcome of one loop: passed, the statistic, its threshold and the figures behind it.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.selection import LoopResult, inner_loop
+    >>> from charcurves.systems import get_system
+    >>> record = cc.corrupt(get_system("duffing").simulate(), 20, seed=0)
+    >>> result = inner_loop([cc.fit(record, method="poly-cc")], [record], snr_db=20)
+    >>> isinstance(result, LoopResult), result.loop, result.passed, result.threshold
+    (True, 'inner', True, 1.5)
+    """
 
     loop: str
     passed: bool
@@ -61,7 +72,18 @@ class LoopResult:
 
 def inner_loop(models: Sequence, records: Sequence, *, factor: float = INNER_FACTOR,
                snr_db: float | None = None, floors: Sequence[NoiseFloor] | None = None) -> LoopResult:
-    """Loss / noise floor of every fit; passes when the largest ratio is at most ``factor``."""
+    """Loss / noise floor of every fit; passes when the largest ratio is at most ``factor``.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.selection import inner_loop
+    >>> from charcurves.systems import get_system
+    >>> record = cc.corrupt(get_system("duffing").simulate(), 20, seed=0)
+    >>> result = inner_loop([cc.fit(record, method="poly-cc")], [record], snr_db=20)
+    >>> result.passed, round(result.statistic, 2)
+    (True, 0.91)
+    """
     ratios, losses, fl, source = [], [], [], ""
     for k, (model, rec) in enumerate(zip(models, records)):
         nf = floors[k] if floors is not None else noise_floor(rec, gain=model.gain, snr_db=snr_db)
@@ -87,6 +109,17 @@ def middle_loop(ensembles: Sequence, *, threshold: float = MIDDLE_THRESHOLD, n_g
     ensembles' spreads; the statistic is the RMS of ``d`` over the grid, and the loop passes
     when the largest statistic is at most ``threshold``. Pairs whose common range is under
     ``min_overlap`` of their joint range are not compared (and reported).
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.selection import fit_ensembles, middle_loop, split_record
+    >>> from charcurves.systems import get_system
+    >>> halves = split_record(cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0), 2)
+    >>> ensembles = fit_ensembles(cc.CharacteristicCurves(method="poly-cc", symmetry="odd"), halves, 4)
+    >>> result = middle_loop(ensembles)
+    >>> result.passed, result.statistic < result.threshold
+    (True, True)
     """
     if len(ensembles) < 2:
         raise DataError("the middle loop compares curves of at least two trajectories; give two records "
@@ -274,6 +307,17 @@ def outer_loop(ensembles: Sequence, *, fraction: float = OUTER_FRACTION, eps: fl
     SimulationError
         For a template that cannot be integrated (no derivative of a state, or not one equation
         per state).
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.selection import fit_ensembles, outer_loop, split_record
+    >>> from charcurves.systems import get_system
+    >>> halves = split_record(cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0), 2)
+    >>> ensembles = fit_ensembles(cc.CharacteristicCurves(method="poly-cc", symmetry="odd"), halves, 3)
+    >>> result = outer_loop(ensembles, fraction=0.2)
+    >>> result.loop, result.passed
+    ('outer', True)
     """
     from ..metrics import separation_time, trajectory_rmse
 

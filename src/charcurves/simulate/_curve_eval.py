@@ -57,6 +57,14 @@ class PreparedCurve:
         (NaN when not tabulated).
     note : str
         Why a requested table was not used, if so.
+
+    Examples
+    --------
+    >>> from charcurves.curves import SymbolicFittedCurve
+    >>> from charcurves.simulate import PreparedCurve, prepare_curve
+    >>> prepared = prepare_curve(SymbolicFittedCurve("f2", "x", (-2.0, 2.0), "z**3 - z"))
+    >>> isinstance(prepared, PreparedCurve), prepared.evaluation, prepared.smooth(2.0), prepared.derivative(2.0)
+    (True, 'exact', 6.0, 11.0)
     """
 
     smooth: Callable[[float], float]
@@ -302,6 +310,15 @@ def prepare_curve(curve, *, evaluation: str = "auto", jump: str = "auto", margin
     ------
     ConfigError
         For an unknown ``evaluation`` or ``jump``, or ``jump="events"`` on a curve without a jump.
+
+    Examples
+    --------
+    >>> from charcurves.curves import BasisFittedCurve
+    >>> from charcurves.simulate import prepare_curve
+    >>> friction = BasisFittedCurve("f1", "x'", (-1.0, 1.0), ["z", "sign(z)"], [0.386, 0.801])  # Coulomb
+    >>> prepared = prepare_curve(friction)  # the jump is split off, for events at x' = 0
+    >>> round(prepared.jump_height, 3), round(prepared.smooth(0.5), 3)
+    (0.801, 0.193)
     """
     if evaluation not in EVALUATIONS:
         raise ConfigError(f"unknown curve evaluation {evaluation!r}; choose one of {', '.join(EVALUATIONS)}")

@@ -86,6 +86,20 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
     -------
     SimulationResult
         ``x`` and ``v`` are (N,) for one state and (N, S) for several (``details["states"]``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.curves import SymbolicFittedCurve
+    >>> from charcurves.fitting import FittedModel
+    >>> from charcurves.simulate import simulate_template_model
+    >>> from charcurves.templates import get_template
+    >>> curves = {"f1": SymbolicFittedCurve("f1", "x", (-2, 2), "z**2 - 1"),
+    ...           "f2": SymbolicFittedCurve("f2", "x", (-2, 2), "z")}
+    >>> van_der_pol = FittedModel(get_template("position-damping"), "demo", curves, gain=1.0, offset=0.0, loss=0.0)
+    >>> res = simulate_template_model(van_der_pol, np.linspace(0, 15, 151), 0.5, 0.0, lambda t: 0.0)
+    >>> res.status, round(float(np.max(np.abs(res.x[-40:]))), 1)  # the limit cycle's amplitude
+    ('ok', 2.0)
     """
     import sympy as sp
     from scipy.integrate import solve_ivp
@@ -221,5 +235,16 @@ class _Stop(Exception):
         self.status, self.message, self.t = status, message, t
 
 
-#: Public name of the stop signal of multi-DOF simulations (caught by selection/'s outer loop).
 SimulationStopped = _Stop
+"""The stop signal of multi-DOF simulations: ``status``, ``message`` and the time ``t`` (caught by
+the outer loop of :mod:`charcurves.selection`).
+
+Examples
+--------
+>>> from charcurves.simulate import SimulationStopped
+>>> try:
+...     raise SimulationStopped("left_box", "x left the training box at t = 3.2", 3.2)
+... except SimulationStopped as stop:
+...     print(stop.status, stop.t)
+left_box 3.2
+"""

@@ -42,6 +42,19 @@ class SimulationResult:
     ``switches`` counts stick/slip transitions (0 without a jump); ``details`` records how the
     curves were evaluated (``"f1"``/``"f2"``: "exact" or "tabulated"), the jump height used for
     events and the time spent sticking.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import charcurves as cc
+    >>> from charcurves.simulate import SimulationResult, simulate_model, sinusoidal_forcing
+    >>> from charcurves.systems import get_system
+    >>> system = get_system("duffing")
+    >>> model = cc.fit(system.simulate(), method="parametric")
+    >>> forcing = sinusoidal_forcing(system.A, system.Omega)
+    >>> res = simulate_model(model, np.linspace(0, 20, 401), system.x0, system.v0, forcing)
+    >>> isinstance(res, SimulationResult), res.ok, res.x.shape, res.details["f1"]
+    (True, True, (401,), 'exact')
     """
 
     t: np.ndarray
@@ -66,11 +79,28 @@ class _Stop(Exception):
 
 
 def sinusoidal_forcing(A: float, Omega: float) -> Callable[[float], float]:
-    """F(t) = A cos(Ω t) (vectorised)."""
+    """F(t) = A cos(Ω t) (vectorised).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.simulate import sinusoidal_forcing
+    >>> F = sinusoidal_forcing(2.0, 0.5)
+    >>> float(F(0.0)), F(np.array([0.0, np.pi])).round(6).tolist()
+    (2.0, [2.0, 0.0])
+    """
     return lambda t: A * np.cos(Omega * t)
 
 
 def solver_class(method):
+    """The scipy ``OdeSolver`` class of a method name (or the class itself); ConfigError for others.
+
+    Examples
+    --------
+    >>> from charcurves.simulate import solver_class
+    >>> solver_class("RK45").__name__, solver_class("LSODA").__name__
+    ('RK45', 'LSODA')
+    """
     import scipy.integrate as si
 
     cls = getattr(si, method, None) if isinstance(method, str) and method in _SOLVERS else method
@@ -84,6 +114,15 @@ def prepare_model_curves(model, *, evaluation: str = "auto", jump: str = "auto",
     """The model's f1 (velocity curve, jump split off when present) and f2, ready for scalar use.
 
     ``options`` go to :func:`charcurves.simulate.prepare_curve` (e.g. ``table_rtol``, ``margin``).
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.simulate import prepare_model_curves
+    >>> from charcurves.systems import get_system
+    >>> f1, f2 = prepare_model_curves(cc.fit(get_system("duffing").simulate(), method="parametric"))
+    >>> f1.evaluation, round(f2.smooth(2.0), 6), round(f2.derivative(2.0), 6)
+    ('exact', 6.0, 11.0)
     """
     f1 = prepare_curve(model.curves["f1"], evaluation=evaluation, jump=jump, **options)
     f2 = prepare_curve(model.curves["f2"], evaluation=evaluation, jump="smooth", split_jump=False, **options)
@@ -362,6 +401,19 @@ def simulate_model(model, t_eval, x0: float, v0: float, forcing: Callable[[float
     ------
     ConfigError
         For an unknown ``method``, ``evaluation`` or ``jump``, or unusable ``t_eval``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import charcurves as cc
+    >>> from charcurves.simulate import simulate_model, sinusoidal_forcing
+    >>> from charcurves.systems import get_system
+    >>> system = get_system("duffing")
+    >>> model = cc.fit(system.simulate(), method="parametric")
+    >>> t = np.linspace(0.0, 20.0, 401)
+    >>> res = simulate_model(model, t, system.x0, system.v0, sinusoidal_forcing(system.A, system.Omega))
+    >>> res.status, float(np.max(np.abs(res.x - system.simulate(t_eval=t).x))) < 1e-3
+    ('ok', True)
     """
     if getattr(getattr(model, "template", None), "is_general", False):  # first-order, position-damping, two-dof...
         from ._families import simulate_template_model

@@ -88,6 +88,7 @@ def simulate_sampled(model, u, x0: float, v0: float, *, dt: float | None = None,
     >>> import numpy as np
     >>> from charcurves.curves import SymbolicFittedCurve
     >>> from charcurves.fitting import FittedModel
+    >>> from charcurves.simulate import simulate_sampled
     >>> from charcurves.templates import get_template
     >>> curves = {"f1": SymbolicFittedCurve("f1", "x'", (-1, 1), "0.2*z"),
     ...           "f2": SymbolicFittedCurve("f2", "x", (-1, 1), "z")}

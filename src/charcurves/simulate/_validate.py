@@ -29,6 +29,17 @@ def free_run_error(model, traj, *, hold: str = "linear", substeps: int = 4, x0: 
     rmse : float
         Root-mean-square of simulated minus measured x over all samples (inf when the run fails).
     result : SimulationResult
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.simulate import free_run_error
+    >>> from charcurves.systems import get_system
+    >>> system = get_system("duffing")
+    >>> record = system.simulate().slice(slice(0, 250))  # 10 s
+    >>> rmse, res = free_run_error(cc.fit(record, method="parametric"), record, x0=system.x0, v0=system.v0)
+    >>> res.status, rmse < 1e-3
+    ('ok', True)
     """
     traj.require_uniform("a free-run simulation of a sampled record")
     if x0 is None or v0 is None:
@@ -47,6 +58,17 @@ def estimate_initial_state(model, traj, *, hold: str = "linear", substeps: int =
     A record's first velocity is not measured, and a derivative estimate at the very edge of a
     record is poor (spectral methods assume periodic continuation); two parameters fitted by
     output error on a short span are robust and cost a few milliseconds.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.simulate import estimate_initial_state
+    >>> from charcurves.systems import get_system
+    >>> system = get_system("duffing")
+    >>> record = system.simulate()
+    >>> x0, v0 = estimate_initial_state(cc.fit(record, method="parametric"), record, substeps=1, n_fit=32)
+    >>> (round(x0, 3), round(v0, 3)) == (round(system.x0, 3), round(system.v0, 3))
+    True
     """
     from scipy.optimize import least_squares
 
@@ -82,6 +104,21 @@ def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_co
     The initial state of each span is estimated from its first 128 samples
     (:func:`estimate_initial_state`); the RMSE is over every sample of the span. Returns the report
     lines and the spans (``"start:stop"``) whose free run failed.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import charcurves as cc
+    >>> from charcurves.simulate import validate_cli
+    >>> from charcurves.systems import get_system
+    >>> folder = tempfile.mkdtemp()
+    >>> record = get_system("duffing").simulate(t_end=10.0, n_points=251)
+    >>> record.to_csv(os.path.join(folder, "record.csv"))
+    >>> cc.fit(record, method="parametric").save(os.path.join(folder, "model"))
+    >>> lines, failed = validate_cli(os.path.join(folder, "model"), os.path.join(folder, "record.csv"),
+    ...                              rows=[slice(0, 200)], substeps=1)
+    >>> lines[1].split(",")[0], failed
+    ('  rows 0:200: ok', [])
     """
     import os
 

@@ -17,7 +17,7 @@ Examples
 >>> import numpy as np
 >>> from charcurves.symbolic import make_engine
 >>> z = np.linspace(-1.5, 1.5, 200)
->>> res = make_engine({"generations": 20}).fit(z[:, None], z**3 - z, ["z"], random_state=0)
+>>> res = make_engine({"generations": 5}).fit(z[:, None], z**3 - z, ["z"], random_state=0)
 >>> sorted(str(t.as_coeff_Mul()[1]) for t in res.expression.as_ordered_terms())
 ['z', 'z**3']
 """

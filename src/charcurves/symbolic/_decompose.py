@@ -22,6 +22,14 @@ def decompose(expr, var_of_curve: dict[str, object]):
         The pure-number part.
     mixed : list of sympy.Expr
         Terms depending on more than one variable (after expansion).
+
+    Examples
+    --------
+    >>> import sympy as sp
+    >>> from charcurves.symbolic import decompose
+    >>> x, v = sp.symbols("x v")
+    >>> decompose(0.3 * v + x**3 - x + 0.1 + 0.2 * x * v, {"f1": v, "f2": x})
+    ({'f1': 0.3*v, 'f2': x**3 - x}, 0.1, [0.2*v*x])
     """
     import sympy as sp
 

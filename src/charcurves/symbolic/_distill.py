@@ -54,6 +54,15 @@ def has_jump(curve: FittedCurve, z: np.ndarray | None = None, y: np.ndarray | No
     curve : FittedCurve
     z, y : arrays, optional
         Samples of the curve on a grid (computed when not given).
+
+    Examples
+    --------
+    >>> from charcurves.curves import BasisFittedCurve, SymbolicFittedCurve
+    >>> from charcurves.symbolic import has_jump
+    >>> has_jump(SymbolicFittedCurve("f1", "x'", (-1, 1), "0.3*z + 0.8*tanh(500*z)"))
+    True
+    >>> has_jump(BasisFittedCurve("f1", "x'", (-1, 1), ["z"], [0.3]))
+    False
     """
     import sympy as sp
 
@@ -97,6 +106,15 @@ def distill_curve(curve: FittedCurve, engine: SymbolicRegressionEngine | None = 
     SymbolicFittedCurve
         Same name, argument and domain; shift 0 (the expression carries the curve's value at 0;
         :func:`distill_model` re-applies the gauge). ``meta`` holds the SR digest.
+
+    Examples
+    --------
+    >>> from charcurves.curves import BasisFittedCurve
+    >>> from charcurves.symbolic import distill_curve, make_engine
+    >>> curve = BasisFittedCurve("f2", "x", (-2.0, 2.0), ["z", "z**3"], [-1.0, 1.0])
+    >>> closed = distill_curve(curve, make_engine({"generations": 5}), n=100)
+    >>> type(closed).__name__, closed.expression().evalf(3)
+    ('SymbolicFittedCurve', 1.0*z**3 - 1.0*z)
     """
     return distill_curve_front(curve, engine, n=n, random_state=random_state, operators=operators)[0]
 
@@ -107,6 +125,8 @@ def turns(y: np.ndarray, share: float = 0.1) -> int:
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from charcurves.symbolic import turns
     >>> z = np.linspace(-2, 2, 1000)
     >>> turns(z**3 + z), turns(z**3 - z), turns(np.sin(25 * z))   # 100 rad: 32 extrema of sin
     (0, 0, 32)
@@ -133,7 +153,18 @@ def turns(y: np.ndarray, share: float = 0.1) -> int:
 
 
 def distill_curve_front(curve: FittedCurve, engine, *, n: int, random_state: int, operators):
-    """(selected closed form, every front member as a full-curve sympy expression, simplest first)."""
+    """(selected closed form, every front member as a full-curve sympy expression, simplest first).
+
+    Examples
+    --------
+    >>> from charcurves.curves import BasisFittedCurve
+    >>> from charcurves.symbolic import distill_curve_front, make_engine
+    >>> curve = BasisFittedCurve("f2", "x", (-2.0, 2.0), ["z", "z**3"], [-1.0, 1.0])
+    >>> engine = make_engine({"generations": 5})
+    >>> selected, front = distill_curve_front(curve, engine, n=100, random_state=0, operators=None)
+    >>> selected.expression().evalf(3), len(front) > 1
+    (1.0*z**3 - 1.0*z, True)
+    """
     import sympy as sp
 
     if engine is None:

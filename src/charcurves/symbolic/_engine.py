@@ -157,6 +157,18 @@ class SymbolicRegressionEngine(abc.ABC):
         ``context``.
     max_points : int
         The search sees at most this many evenly spaced points (selection and polishing use all).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.symbolic import SymbolicRegressionEngine, make_engine
+    >>> engine = make_engine({"generations": 5})
+    >>> isinstance(engine, SymbolicRegressionEngine)
+    True
+    >>> z = np.linspace(-2, 2, 200)
+    >>> result = engine.fit(z[:, None], 2 * z**3 - z, ["z"], random_state=0)
+    >>> result.expression.evalf(3), result.criterion, result.engine
+    (2.0*z**3 - 1.0*z, 'bic', 'operon')
     """
 
     name = "abstract"
@@ -282,6 +294,15 @@ class OperonEngine(SymbolicRegressionEngine):
 
     Operon's own linear scaling adds a scale and an intercept to every model; the intercept is
     removed again by the selection when it does not pay for itself.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.symbolic import OperonEngine
+    >>> z = np.linspace(-2, 2, 200)
+    >>> result = OperonEngine(generations=5).fit(z[:, None], z**3 - z, ["z"], random_state=0)
+    >>> result.engine, sorted(str(t.as_coeff_Mul()[1]) for t in result.expression.as_ordered_terms())
+    ('operon', ['z', 'z**3'])
     """
 
     name = "operon"
@@ -342,6 +363,13 @@ class PySREngine(SymbolicRegressionEngine):
     ``binary_operators`` (+ - * / ^) and ``unary_operators`` (the rest); L2 loss,
     ``deterministic=True`` with serial parallelism and ``random_state`` (reproducible). PySR's
     whole hall of fame goes through the same selection and polishing as Operon's front.
+
+    Examples
+    --------
+    >>> from charcurves.symbolic import PySREngine, make_engine
+    >>> engine = make_engine({"engine": "pysr", "generations": 40})
+    >>> isinstance(engine, PySREngine), engine.name, engine.generations
+    (True, 'pysr', 40)
     """
 
     name = "pysr"
@@ -405,6 +433,13 @@ def make_engine(sr_options: dict | None = None) -> SymbolicRegressionEngine:
     ------
     ConfigError
         For unknown keys or values.
+
+    Examples
+    --------
+    >>> from charcurves.symbolic import make_engine
+    >>> engine = make_engine({"generations": 10, "operators": ["add", "sub", "mul", "tanh"]})
+    >>> engine.name, engine.generations, engine.operators
+    ('operon', 10, ('add', 'sub', 'mul', 'tanh'))
     """
     opts = dict(sr_options or {})
     unknown = sorted(set(opts) - set(SR_OPTION_KEYS))
@@ -421,7 +456,14 @@ def make_engine(sr_options: dict | None = None) -> SymbolicRegressionEngine:
 
 
 def operators_option(sr_options: dict | None):
-    """``None`` when ``sr_options["operators"]`` is "auto" (caller decides), else the tuple."""
+    """``None`` when ``sr_options["operators"]`` is "auto" (caller decides), else the tuple.
+
+    Examples
+    --------
+    >>> from charcurves.symbolic import operators_option
+    >>> operators_option({"operators": "auto"}), operators_option({"operators": ["add", "mul", "tanh"]})
+    (None, ('add', 'mul', 'tanh'))
+    """
     ops = (sr_options or {}).get("operators", "auto")
     if ops is None or (isinstance(ops, str) and ops.strip().lower() == "auto"):
         return None

@@ -18,6 +18,14 @@ def expression_complexity(expr) -> int:
     Every symbol, constant and operator counts 1; ``b**n`` for an integer n >= 2 counts as the
     n-fold product (``z**3`` = z*z*z = 5), so a cubic is not mistaken for something as simple as
     a linear term.
+
+    Examples
+    --------
+    >>> import sympy as sp
+    >>> from charcurves.symbolic import expression_complexity
+    >>> z = sp.Symbol("z")
+    >>> expression_complexity(z), expression_complexity(z**3 - z), expression_complexity(0.8 * sp.tanh(50 * z))
+    (1, 9, 6)
     """
     import sympy as sp
 
@@ -65,7 +73,16 @@ def canonical(expr):
 
 
 def split_terms(expr) -> list[tuple[float, Any]]:
-    """``sum c_j b_j`` -> [(c_j, b_j)] with numeric c_j (b_j = 1 for the constant)."""
+    """``sum c_j b_j`` -> [(c_j, b_j)] with numeric c_j (b_j = 1 for the constant).
+
+    Examples
+    --------
+    >>> import sympy as sp
+    >>> from charcurves.symbolic import split_terms
+    >>> z = sp.Symbol("z")
+    >>> split_terms(2.0 * z**3 - z + 0.5)
+    [(0.5, 1), (-1.0, z), (2.0, z**3)]
+    """
     import sympy as sp
 
     terms = sp.Add.make_args(expr)
@@ -85,7 +102,19 @@ def lambdify_numpy(expr, symbols):
 
 
 def eval_expression(expr, symbols, X) -> np.ndarray | None:
-    """Values of ``expr`` on the columns of X; None when not finite."""
+    """Values of ``expr`` on the columns of X; None when not finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import sympy as sp
+    >>> from charcurves.symbolic import eval_expression
+    >>> x, v = sp.symbols("x v")
+    >>> eval_expression(x**3 + 0.3 * v, [x, v], np.array([[1.0, 2.0], [2.0, 0.0]])).tolist()
+    [1.6, 8.0]
+    >>> eval_expression(1 / x, [x], np.array([[0.0]])) is None
+    True
+    """
     n = X.shape[0]
     if not (expr.free_symbols & set(symbols)):
         try:
@@ -121,6 +150,17 @@ def polish_constants(expr, symbols, X, y, *, max_nfev: int = 200):
     (sympy.Expr, float)
         The polished expression and its MSE; the input unchanged when polishing does not lower
         the MSE (or fails).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import sympy as sp
+    >>> from charcurves.symbolic import polish_constants
+    >>> z = sp.Symbol("z")
+    >>> X = np.linspace(-2, 2, 100)[:, None]
+    >>> polished = polish_constants(0.9 * z**3 - 1.1 * z, [z], X, 2 * X[:, 0] ** 3 - X[:, 0])
+    >>> sp.nsimplify(polished, tolerance=1e-9, rational=True)
+    (2*z**3 - z, 0)
     """
     import sympy as sp
     from scipy.optimize import least_squares
@@ -211,6 +251,14 @@ def parse_infix(text: str, symbols: Sequence) -> Any:
 
     Only numbers, ``X<k>``, known function names and arithmetic are accepted (token check
     before sympy sees the text); ``^`` is power.
+
+    Examples
+    --------
+    >>> import sympy as sp
+    >>> from charcurves.symbolic import parse_infix
+    >>> x, v = sp.symbols("x v")
+    >>> parse_infix("(0.3 * X2) + ((X1 * X1) * X1)", [x, v])
+    0.3*v + x**3
     """
     import re
 

@@ -35,7 +35,17 @@ REL_MSE_FLOOR = 1e-12
 
 
 class FrontEntry(NamedTuple):
-    """One Pareto-optimal model: complexity, MSE on all points, the sympy expression."""
+    """One Pareto-optimal model: complexity, MSE on all points, the sympy expression.
+
+    Examples
+    --------
+    >>> import sympy as sp
+    >>> from charcurves.symbolic import FrontEntry, select_model
+    >>> z = sp.Symbol("z")
+    >>> front = [FrontEntry(1, 1.0, z), FrontEntry(3, 1e-3, z**3 - z), FrontEntry(7, 9.9e-4, z**3 - z + z**5 / 100)]
+    >>> front[1].expression, select_model(front, "bic", n=1000, var_y=1.0)
+    (z**3 - z, 2)
+    """
 
     complexity: int
     mse: float
@@ -66,6 +76,15 @@ class SRResult:
     operators : tuple of str
     info : dict
         Engine details (generations run, evaluations, candidates considered...).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.symbolic import SRResult, make_engine
+    >>> z = np.linspace(-2, 2, 200)
+    >>> result = make_engine({"generations": 5}).fit(z[:, None], z**3 - z, ["z"], random_state=0)
+    >>> isinstance(result, SRResult), result.complexity, result.mse < 1e-12, [e.complexity for e in result.front][:3]
+    (True, 11, True, [1, 3, 7])
     """
 
     expression: Any
@@ -220,6 +239,17 @@ def select_model(front: Sequence, criterion: str, n: int, var_y: float, context:
         of them fits the noise by chance more often than one pre-chosen term would.
         Appropriate for independent noise; on samples of a smooth learned curve (systematic,
         correlated error) it keeps adding terms.
+
+    Examples
+    --------
+    >>> import sympy as sp
+    >>> from charcurves.symbolic import FrontEntry, SELECTION_CRITERIA, select_model
+    >>> z = sp.Symbol("z")
+    >>> front = [FrontEntry(1, 1.0, z), FrontEntry(3, 1e-3, z**3 - z), FrontEntry(7, 9.9e-4, z**3 - z + z**5 / 100)]
+    >>> SELECTION_CRITERIA
+    ('auto', 'knee', 'bic', 'parsimony', 'best')
+    >>> select_model(front, "bic", n=1000, var_y=1.0), select_model(front, "best", n=1000, var_y=1.0)
+    (2, 1)
     """
     if criterion not in SELECTION_CRITERIA:
         raise ConfigError(f"unknown selection criterion {criterion!r}; choose one of {', '.join(SELECTION_CRITERIA)}")

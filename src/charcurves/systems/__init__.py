@@ -54,6 +54,17 @@ def get_system(name: str, variant: str = "paper", **overrides: Any) -> Benchmark
     ------
     ConfigError
         For an unknown name, variant or parameter.
+
+    Examples
+    --------
+    >>> from charcurves.systems import SYSTEM_NAMES, get_system
+    >>> SYSTEM_NAMES
+    ('duffing', 'stick-slip', 'van-der-pol', 'first-order', 'two-dof')
+    >>> system = get_system("stick_slip", variant="smooth")
+    >>> system.name, system.friction
+    ('stick-slip', 'tanh')
+    >>> get_system("duffing", alpha=-1.05).parameters()["alpha"]
+    -1.05
     """
     key = str(name).strip().lower().replace("_", "-") if isinstance(name, str) else name
     cls = _REGISTRY.get(key) if isinstance(key, str) else None

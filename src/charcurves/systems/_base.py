@@ -82,6 +82,18 @@ class BenchmarkSystem(abc.ABC):
         Solver-tolerance preset.
     rtol, atol : float, optional
         LSODA tolerances; override ``tolerance``.
+
+    Examples
+    --------
+    >>> from charcurves.systems import BenchmarkSystem, get_system
+    >>> system = get_system("duffing", A=0.3)
+    >>> isinstance(system, BenchmarkSystem), system.parameters()["A"]
+    (True, 0.3)
+    >>> record = system.simulate(t_end=20.0, n_points=401)
+    >>> record.n_samples, record.has_derivatives
+    (401, True)
+    >>> float(system.f2(2.0))
+    6.0
     """
 
     #: Registry name, also the name of the simulated trajectories.

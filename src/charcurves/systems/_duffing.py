@@ -36,6 +36,7 @@ class Duffing(BenchmarkSystem):
 
     Examples
     --------
+    >>> from charcurves.systems import Duffing
     >>> tr = Duffing().simulate()
     >>> tr.n_samples, tr.name
     (1000, 'duffing')

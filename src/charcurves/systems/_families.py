@@ -33,8 +33,9 @@ class VanDerPolDamping(BenchmarkSystem):
 
     Examples
     --------
+    >>> from charcurves.systems import VanDerPolDamping
     >>> s = VanDerPolDamping()
-    >>> float(s.f1(np.array([1.0]))[0]), s.family
+    >>> float(s.f1(1.0)), s.family
     (0.0, 'position-damping')
     """
 
@@ -94,6 +95,7 @@ class FirstOrderSystem(BenchmarkSystem):
 
     Examples
     --------
+    >>> from charcurves.systems import FirstOrderSystem
     >>> FirstOrderSystem().family
     'first-order'
     """
@@ -183,6 +185,7 @@ class TwoDOF:
 
     Examples
     --------
+    >>> from charcurves.systems import TwoDOF
     >>> s = TwoDOF()
     >>> sorted(s.true_curves())
     ['f1', 'f2', 'f3', 'f4']
@@ -286,7 +289,19 @@ class TwoDOF:
 
 def corrupt_forces(record, snr_db: float, *, seed=None, reference: str = "std"):
     """Gaussian noise on every forcing column of a MultiTrajectory at ``snr_db`` (each relative
-    to its own signal), from one seeded generator."""
+    to its own signal), from one seeded generator.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.systems import TwoDOF, corrupt_forces
+    >>> clean = TwoDOF().simulate()
+    >>> noisy = corrupt_forces(clean, 20, seed=0)
+    >>> sorted(noisy.forces)
+    ['F1', 'F2']
+    >>> [round(float(np.std(noisy.forces[k] - clean.forces[k]) / np.std(clean.forces[k])), 2) for k in ("F1", "F2")]
+    [0.1, 0.1]
+    """
     from ..data import add_noise, as_rng
 
     rng = as_rng(seed)

@@ -44,6 +44,16 @@ class StickSlip(BenchmarkSystem):
 
     All: k = 1.274, c = 0.386, μN = 0.801, A = 2, x0 = −0.076, v0 = 0.146. ``friction``
     (``"coulomb"`` or ``"tanh"``) and ``tanh_scale`` can be overridden independently.
+
+    Examples
+    --------
+    >>> from charcurves.systems import StickSlip
+    >>> system = StickSlip()
+    >>> round(float(system.f1(0.5)), 3), system.friction
+    (0.994, 'coulomb')
+    >>> record = system.simulate()
+    >>> int(system.sticking_mask(record).sum()) > 0
+    True
     """
 
     name: ClassVar[str] = "stick-slip"

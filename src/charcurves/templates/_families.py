@@ -39,6 +39,18 @@ class Template:
         paper's f2(0) = 0, or "f1"); None takes the family's default.
     gain_on : {"force", "acceleration"}
         With a free gain, which measured side carries the noise and is the regression target.
+
+    Examples
+    --------
+    >>> from charcurves.curves import Neural, Polynomial
+    >>> from charcurves.templates import Separable, Template
+    >>> template = Separable(f1=Polynomial(degree=3), f2=Neural(hidden=(16,)))
+    >>> isinstance(template, Template), template.curve_names
+    (True, ('f1', 'f2'))
+    >>> template.set_params(f2__hidden=(8, 8)).get_params()["f2__hidden"]
+    (8, 8)
+    >>> template.structure().text
+    "x'' + f1(x') + f2(x) = F"
     """
 
     family: ClassVar[str] = ""
@@ -138,6 +150,7 @@ class Separable(Template):
     Examples
     --------
     >>> from charcurves.curves import Neural, Polynomial
+    >>> from charcurves.templates import Separable
     >>> Separable(f1=Polynomial(degree=3, symmetry="odd"), f2=Neural(symmetry="odd"))
     Separable(f1=Polynomial(degree=3, symmetry='odd'), f2=Neural(symmetry='odd'))
     """
@@ -148,7 +161,18 @@ class Separable(Template):
 
 
 class PositionDamping(Template):
-    """``x'' + f1(x) x' + f2(x) = g F`` (position-dependent damping, Van der Pol type)."""
+    """``x'' + f1(x) x' + f2(x) = g F`` (position-dependent damping, Van der Pol type).
+
+    Examples
+    --------
+    >>> from charcurves.curves import Polynomial
+    >>> from charcurves.templates import PositionDamping
+    >>> template = PositionDamping(f1=Polynomial(degree=2, symmetry="even"))
+    >>> template.structure().arguments
+    {'f1': 'x', 'f2': 'x'}
+    >>> template.f2 is None
+    True
+    """
 
     family = "position-damping"
     curve_names = ("f1", "f2")
@@ -156,7 +180,14 @@ class PositionDamping(Template):
 
 
 class FirstOrder(Template):
-    """``f1(x) + f2(x) x' = g F``."""
+    """``f1(x) + f2(x) x' = g F``.
+
+    Examples
+    --------
+    >>> from charcurves.templates import FirstOrder
+    >>> FirstOrder(free_gain=True).structure().text
+    "f1(x) + f2(x)*x' = F"
+    """
 
     family = "first-order"
     curve_names = ("f1", "f2")
@@ -164,7 +195,15 @@ class FirstOrder(Template):
 
 
 class TwoDOF(Template):
-    """``x1'' + f1(x1') + f2(x1 - x2) = F1; x2'' + f3(x2') + f4(x2 - x1) = F2`` (f2(0) = f4(0) = 0)."""
+    """``x1'' + f1(x1') + f2(x1 - x2) = F1; x2'' + f3(x2') + f4(x2 - x1) = F2`` (f2(0) = f4(0) = 0).
+
+    Examples
+    --------
+    >>> from charcurves.templates import TwoDOF
+    >>> structure = TwoDOF().structure()
+    >>> structure.states, structure.forces, structure.gauge_conditions()
+    (('x1', 'x2'), ('F1', 'F2'), ['f2(0) = 0', 'f4(0) = 0'])
+    """
 
     family = "two-dof"
     curve_names = ("f1", "f2", "f3", "f4")
@@ -183,6 +222,14 @@ class Equation(Template):
         A representation per curve name of the equation (``f1=...``); unset ones take the default.
     gain, free_gain, gauge, gain_on
         As every template.
+
+    Examples
+    --------
+    >>> from charcurves.curves import Polynomial
+    >>> from charcurves.templates import Equation
+    >>> template = Equation("x'' + a1*x' + f1(x) = F", f1=Polynomial(degree=3, symmetry="odd"))
+    >>> template.curve_names, template.structure().scalar_names
+    (('f1',), ('a1',))
     """
 
     family = "custom"
@@ -236,7 +283,16 @@ _FAMILY_CLASSES: dict[str, type[Template]] = {"separable": Separable, "position-
 
 
 def as_template(family: str | None = "separable", *, equation: str | None = None, **options) -> Template:
-    """The template object of a family name or a user-written equation, without representations."""
+    """The template object of a family name or a user-written equation, without representations.
+
+    Examples
+    --------
+    >>> from charcurves.templates import as_template
+    >>> as_template("position-damping", free_gain=True)
+    PositionDamping(free_gain=True)
+    >>> as_template(equation="x'' + f1(x)*x' + f2(x) = F")
+    Equation(equation="x'' + f1(x)*x' + f2(x) = F")
+    """
     check_equation_option(equation)
     if family in FAMILY_EQUATIONS and family != "separable" and equation is not None and \
             " ".join(str(equation).split()) == \
@@ -258,6 +314,13 @@ def get_template(family: str = "separable", *, equation: str | None = None, **kw
     """The parsed structure of a family name, or of a user-written ``equation`` (family "custom").
 
     ``gauge=None`` takes the family's default anchors (separable: f2(0) = 0).
+
+    Examples
+    --------
+    >>> from charcurves.templates import get_template
+    >>> structure = get_template("first-order")
+    >>> structure.family, structure.curve_names, structure.arguments
+    ('first-order', ('f1', 'f2'), {'f1': 'x', 'f2': 'x'})
     """
     if family == "separable" and equation is None and kwargs.get("gauge") not in (None, "f1", "f2", ("f1",),
                                                                                   ("f2",), ["f1"], ["f2"]):
@@ -266,5 +329,13 @@ def get_template(family: str = "separable", *, equation: str | None = None, **kw
 
 
 def parse_equation(text: str, **kwargs) -> EquationTemplate:
-    """Parse a user-written template (see :class:`EquationTemplate`); never evaluates the text as code."""
+    """Parse a user-written template (see :class:`EquationTemplate`); never evaluates the text as code.
+
+    Examples
+    --------
+    >>> from charcurves.templates import parse_equation
+    >>> structure = parse_equation("x'' + f1(x') + a1*x = F")
+    >>> structure.curve_names, structure.scalar_names, structure.family
+    (('f1',), ('a1',), 'custom')
+    """
     return EquationTemplate(text, **kwargs)

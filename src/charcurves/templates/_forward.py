@@ -93,6 +93,13 @@ class ForwardModel:
         ``divides``).
     divides : bool
         One equation whose top derivative is also a factor of curves (``mult_top``).
+
+    Examples
+    --------
+    >>> from charcurves.templates import ForwardModel, get_template
+    >>> model = ForwardModel(get_template("separable"))
+    >>> model.layout, model.top
+    (['x', 'x__d1'], ['x__d2'])
     """
 
     def __init__(self, template: EquationTemplate):

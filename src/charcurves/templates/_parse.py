@@ -35,7 +35,14 @@ def _name_ok(name: str) -> bool:
 
 
 def display(sym_name: str) -> str:
-    """Internal symbol name -> as written (``x1__d1`` -> ``x1'``)."""
+    """Internal symbol name -> as written (``x1__d1`` -> ``x1'``).
+
+    Examples
+    --------
+    >>> from charcurves.templates import display
+    >>> display("x1__d1"), display("x__d2"), display("F")
+    ("x1'", "x''", 'F')
+    """
     m = DERIV.match(sym_name)
     return f"{m.group(1)}{chr(39) * int(m.group(2))}" if m else sym_name
 
@@ -227,7 +234,18 @@ def sort_key(name: str):
 
 
 def check_equation_option(equation) -> None:
-    """Refuse an empty ``equation`` option: it must not fall back silently to the separable family."""
+    """Refuse an empty ``equation`` option: it must not fall back silently to the separable family.
+
+    Examples
+    --------
+    >>> from charcurves.templates import check_equation_option
+    >>> check_equation_option(None)
+    >>> try:
+    ...     check_equation_option("  ")
+    ... except ValueError as exc:
+    ...     print(str(exc)[:22])
+    the equation is empty;
+    """
     if equation is not None and not str(equation).strip():
         raise ConfigError("the equation is empty; write a template such as \"x'' + f1(x') + f2(x) = F\" "
                           "or leave out --equation (equation=None) for the separable family")

@@ -13,7 +13,18 @@ __all__ = ["prepare_record", "sticking_mask", "read_record", "derivatives_given"
 
 
 def derivatives_given(record, template: EquationTemplate, differentiator) -> bool:
-    """Whether the record's own derivative columns are used (``differentiator`` "auto"/"given")."""
+    """Whether the record's own derivative columns are used (``differentiator`` "auto"/"given").
+
+    Examples
+    --------
+    >>> from charcurves.templates import derivatives_given, get_template
+    >>> from charcurves.systems import get_system
+    >>> record = get_system("duffing").simulate()
+    >>> derivatives_given(record, get_template(), "auto"), derivatives_given(record, get_template(), "spline")
+    (True, False)
+    >>> derivatives_given(record.replace(v=None, a=None), get_template(), "auto")
+    False
+    """
     from ..data import Given, MultiTrajectory, Trajectory
 
     wants_given = differentiator is None or isinstance(differentiator, Given) or (
@@ -51,6 +62,15 @@ def prepare_record(record, template: EquationTemplate, sym: dict, differentiator
     -------
     (record, estimated)
         The record with derivatives, and whether they were estimated (a measured record).
+
+    Examples
+    --------
+    >>> from charcurves.templates import get_template, prepare_record
+    >>> from charcurves.systems import get_system
+    >>> measured = get_system("duffing").simulate().replace(v=None, a=None)
+    >>> record, estimated = prepare_record(measured, get_template(), {}, "spectral", "method poly-cc")
+    >>> estimated, record.has_derivatives
+    (True, True)
     """
     from ..data import MIN_SAMPLES, Given, MultiTrajectory, Trajectory, estimate_derivatives
 
@@ -121,6 +141,15 @@ def sticking_mask(traj, *, rel_tol: float | None = None, min_run: int = 3) -> np
     There the friction force is set-valued (any value with |f| <= mu*N), so these samples only
     bound f1 and must not be fitted as points of the curve. ``rel_tol`` is the threshold on
     |x'| relative to max|x'|: exact zeros (1e-12) for given derivatives, 1 % for estimated ones.
+
+    Examples
+    --------
+    >>> from charcurves.systems import get_system
+    >>> from charcurves.templates import sticking_mask
+    >>> record = get_system("stick-slip").simulate()
+    >>> mask = sticking_mask(record)
+    >>> mask.shape, round(float(mask.mean()), 2)
+    ((1000,), 0.37)
     """
     if getattr(traj, "v", None) is None:  # multi-DOF records: sticking is not detected (see docs/families.md)
         return np.zeros(traj.n_samples, dtype=bool)
@@ -143,7 +172,19 @@ def sticking_mask(traj, *, rel_tol: float | None = None, min_run: int = 3) -> np
 def read_record(path, *, family: str = "separable", equation: str | None = None, time_col: str | None = "t",
                 x_col: str = "x", force_col: str = "F", sample_rate=None, rows=None):
     """Read a CSV record in the shape the template needs: a Trajectory (t,x,F[,v,a]) or, for
-    multi-DOF templates, a MultiTrajectory (t,x1,x2,F1,F2[,v1,a1,v2,a2])."""
+    multi-DOF templates, a MultiTrajectory (t,x1,x2,F1,F2[,v1,a1,v2,a2]).
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from charcurves.systems import get_system
+    >>> from charcurves.templates import read_record
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "duffing.csv"
+    >>> get_system("duffing").simulate().to_csv(path)
+    >>> record = read_record(path)
+    >>> type(record).__name__, record.n_samples
+    ('Trajectory', 1000)
+    """
     from ..data import MultiTrajectory, Trajectory
     from ._families import get_template
 

@@ -4,26 +4,24 @@ A template is a list of equations, each written as a residual that must vanish::
 
     known_e(t) + sum_i m_ie(t) f_i(u_i(t)) + sum_j s_je(t) a_j + b_e - g * input_e(t) = 0
 
-with data signals (``x, x', x'', x1 - x2, F, ...``) for the known part, the coefficients
-``m_ie``, the curve arguments ``u_i``, the scalar signals ``s_je`` and the input (every term
-containing a forcing column ``F``, ``F1``...). ``g`` is the input gain (fixed, or learned with
-``free_gain``) and ``b_e`` a free constant that exists only where no curve can carry it.
+with data signals (``x, x', x'', x1 - x2, F, ...``) for the known part, the coefficients ``m_ie``, the curve arguments
+``u_i``, the scalar signals ``s_je`` and the input (every term containing a forcing column ``F``, ``F1``...). ``g`` is
+the input gain (fixed, or learned with ``free_gain``) and ``b_e`` a free constant that exists only where no curve can
+carry it.
 
 Identifiability (the paper's appendix A, generalised):
 
-* a constant ``c_i`` added to curve ``f_i`` changes equation ``e`` by ``c_i m_ie``; the constants
-  the curves can trade without changing any residual are the null space of the matrix whose
-  columns are the stacked coefficient signals. Each null vector is a *gauge freedom*, fixed by
-  anchoring one curve at 0 (``f(0) = 0``), as the paper does with ``f2(0) = 0``;
+* a constant ``c_i`` added to curve ``f_i`` changes equation ``e`` by ``c_i m_ie``; the constants the curves can trade
+  without changing any residual are the null space of the matrix whose columns are the stacked coefficient signals.
+  Each null vector is a *gauge freedom*, fixed by anchoring one curve at 0 (``f(0) = 0``), as the paper does with
+  ``f2(0) = 0``;
 * a scalar inside such a null vector is not identifiable (it trades with curve constants);
-* two curves whose arguments are functions of one another, entering every equation with a
-  coefficient ratio that is itself a function of that argument (``f1(x) + f2(x)``), can trade
-  any function: not identifiable. The same holds for a scalar whose signal a curve can
-  reproduce (``a1*x`` next to ``f1(x)``).
+* two curves whose arguments are functions of one another, entering every equation with a coefficient ratio that is
+  itself a function of that argument (``f1(x) + f2(x)``), can trade any function: not identifiable. The same holds for
+  a scalar whose signal a curve can reproduce (``a1*x`` next to ``f1(x)``).
 
-Signals are compared as functions of independent data symbols (``x`` and ``x'`` are independent
-coordinates of phase space, as in appendix A), by evaluating them at random points.
-"""
+Signals are compared as functions of independent data symbols (``x`` and ``x'`` are independent coordinates of phase
+space, as in appendix A), by evaluating them at random points."""
 
 from __future__ import annotations
 
@@ -64,11 +62,10 @@ class EquationTemplate:
 
     Examples
     --------
+    >>> from charcurves.templates import EquationTemplate
     >>> t = EquationTemplate("x'' + f1(x') + f2(x) = F")
-    >>> t.curve_names, t.arguments
-    (('f1', 'f2'), {'f1': "x'", 'f2': 'x'})
-    >>> t.gauge_conditions()
-    ['f2(0) = 0']
+    >>> t.curve_names, t.arguments, t.gauge_conditions()
+    (('f1', 'f2'), {'f1': "x'", 'f2': 'x'}, ['f2(0) = 0'])
     """
 
     def __init__(self, equation: str, *, family: str = "custom", free_gain: bool = False, gain: float = 1.0,
@@ -108,8 +105,7 @@ class EquationTemplate:
             if eq.known == 0 and eq.input == 0:
                 raise IdentifiabilityError(
                     f"{where} {part.strip()!r} has no known term (such as x'' or F): all curves = 0 solves it, so "
-                    "their scale is not identifiable; put a measured signal such as F on one side"
-                )
+                    "their scale is not identifiable; put a measured signal such as F on one side")
             if not eq.curves and not eq.scalars:
                 raise ConfigError(f"{where} {part.strip()!r} has no unknown curve or scalar; drop it or add one")
             self.equations.append(eq)
@@ -140,7 +136,6 @@ class EquationTemplate:
         #: the gauge as asked for (None: the family's default anchors); ``anchors`` is what it resolved to
         self.gauge = gauge
 
-    # ------------------------------------------------------------------ description
     @property
     def is_general(self) -> bool:
         """False for the paper's separable family (which has its own closed-form output and simulator)."""
@@ -182,7 +177,6 @@ class EquationTemplate:
     def __repr__(self) -> str:
         return f"EquationTemplate({self.text!r}, family={self.family!r})"
 
-    # ------------------------------------------------------------------ symbolic checks
     def _points(self, n: int = 12) -> dict[str, np.ndarray]:
         """Random values of the data symbols (independent coordinates), drawn once from a fixed seed."""
         if self._rng_points is None:
@@ -242,8 +236,7 @@ class EquationTemplate:
                     raise IdentifiabilityError(
                         f"{a}({self.arguments[a]}) and {b}({self.arguments[b]}) enter the template in the same way: "
                         f"any function of {self.arguments[a]} can move from one to the other, so neither is "
-                        f"identifiable; merge them into one curve or give them independent arguments"
-                    )
+                        f"identifiable; merge them into one curve or give them independent arguments")
         for s in self.scalar_names:
             sc = {e: eq.scalars[s] for e, eq in enumerate(self.equations) if s in eq.scalars}
             for n in self.curve_names:
@@ -253,10 +246,8 @@ class EquationTemplate:
                 shown = show(next(iter(sc.values())))
                 raise IdentifiabilityError(
                     f"the scalar term {s}*{shown} can be absorbed by {n}({self.arguments[n]}) (it adds "
-                    f"{show(r)} * {s} to {n}), so {s} is not identifiable; drop {s} or the curve {n}"
-                )
+                    f"{show(r)} * {s} to {n}), so {s} is not identifiable; drop {s} or the curve {n}")
 
-    # ------------------------------------------------------------------ constants and gauge
     def _slot_matrix(self, slots: list[tuple[str, str]]) -> np.ndarray:
         """Columns: the stacked coefficient signals of constant slots (curve, scalar or offset)."""
         cols = []
@@ -384,8 +375,7 @@ class EquationTemplate:
                 raise IdentifiabilityError(
                     f"the scalar {bad[0]} trades{with_}, so its value is not identifiable; drop {bad[0]}"
                     + (f" or make {', '.join(o for o in others if o.startswith('f'))} odd (an odd curve carries "
-                       "no constant)" if any(o.startswith("f") for o in others) else "")
-                )
+                       "no constant)" if any(o.startswith("f") for o in others) else ""))
 
     def normalise(self, values_at_zero: dict[str, float], pinned: dict[str, bool], offsets: dict[int, float]):
         """Shifts per curve (and new offsets) that satisfy the anchors; see :meth:`_freedoms`."""
@@ -414,7 +404,6 @@ class EquationTemplate:
                         new_off[int(slot[1][1:]) - 1] = value[slot]
         return shifts, new_off
 
-    # ------------------------------------------------------------------ data
     def columns_of(self, record) -> dict[str, np.ndarray]:
         return record_columns(record, self)
 
@@ -451,6 +440,15 @@ class EquationTemplate:
 
 
 def evaluate_signal(expr, cols: dict[str, np.ndarray], n: int) -> np.ndarray:
+    """Values of a template expression on data columns (``x__d1`` is x'), as an array of length ``n``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.templates import evaluate_signal
+    >>> evaluate_signal("x - x__d1", {"x": np.array([1.0, 2.0]), "x__d1": np.array([0.5, 0.5])}, 2).tolist()
+    [0.5, 1.5]
+    """
     import sympy as sp
 
     expr = sp.sympify(expr)
@@ -463,7 +461,14 @@ def evaluate_signal(expr, cols: dict[str, np.ndarray], n: int) -> np.ndarray:
 
 
 def record_columns(record, template: EquationTemplate) -> dict[str, np.ndarray]:
-    """The data symbols a template reads, from a Trajectory or a MultiTrajectory."""
+    """The data symbols a template reads, from a Trajectory or a MultiTrajectory.
+
+    Examples
+    --------
+    >>> from charcurves import systems, templates
+    >>> sorted(templates.record_columns(systems.get_system("duffing").simulate(), templates.get_template()))
+    ['F', 't', 'x', 'x__d1', 'x__d2']
+    """
     from ..data import MultiTrajectory, Trajectory
 
     need = set(template.symbols)
