@@ -126,7 +126,9 @@ def train_long_record(problem, theta0, preset, chunk: int, row_seeds: Sequence[i
                                      preset.n_starts, preset.combine_tol)
         part = problem.subset(sel)
         part.set_weight_decay(decay[sel] if problem.n_decay_groups > 1 else decay[sel, 0])
-        refined, logs2 = train_in_chunks(part, theta[sel], chunk, progress=progress, adam_steps=0,
+        label = None if progress is None else (  # the second stage's lines say what it is
+            lambda phase, *rest: progress(f"refine on all {N} samples" if phase == "lm" else phase, *rest))
+        refined, logs2 = train_in_chunks(part, theta[sel], chunk, progress=label, adam_steps=0,
                                          adam_lr=preset.adam_lr, lm_max_iter=preset.lm_max_iter, keep_decay=True,
                                          **options)
         theta = theta.clone()
