@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -143,7 +144,8 @@ def _initial_decay(problem, theta, shape):
     return lam_g.min(dim=1).values if len(shape) == 1 else lam_g
 
 
-def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress, holder):
+def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress, holder, window=0,
+                         deadline=None, nielsen=False):
     K, P = theta.shape
     if problem.bayesian:
         shape = (K,) if problem.n_decay_groups == 1 else (K, problem.n_decay_groups)
@@ -153,9 +155,17 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
     mu = torch.full((K,), 1e-3, dtype=theta.dtype, device=theta.device)
     active = cost > stop_loss
     stalls = torch.zeros(K, dtype=torch.long, device=theta.device)
+    # window > 0: a model stops when its relative decrease summed over its last `window` iterations
+    # is below tol; a rejected step counts (as no decrease) only when its trial changed the loss by
+    # less than tol (rounding-level: nothing left to gain), not when it overshot
+    recent = torch.full((K, max(window, 1)), float("inf"), dtype=theta.dtype, device=theta.device)
     eye = torch.eye(P, dtype=theta.dtype, device=theta.device)
+    nu = torch.full((K,), 2.0, dtype=theta.dtype, device=theta.device)
     for it in range(max_iter):
         if not bool(active.any()):
+            break
+        if deadline is not None and time.monotonic() > deadline:
+            log.stopped_by = "time_budget"
             break
         JtJ = J.transpose(1, 2) @ J
         g = (J.transpose(1, 2) @ r.unsqueeze(-1)).squeeze(-1)
@@ -171,14 +181,28 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
         r_new = problem.residuals(trial)
         cost_new = r_new.pow(2).sum(1)
         accept = active & ok_solve & torch.isfinite(cost_new) & (cost_new < cost)
+        cost_before = cost
         rel = torch.where(accept, (cost - cost_new) / cost.clamp_min(1e-300), torch.zeros_like(cost))
+        if window:
+            flat = accept | (active & ok_solve & ((cost_new - cost).abs() <= tol * cost))
+            recent = torch.where(flat.unsqueeze(-1), torch.cat([recent[:, 1:], rel.unsqueeze(-1)], dim=1), recent)
         theta = torch.where(accept.unsqueeze(-1), trial, theta)
         cost = torch.where(accept, cost_new, cost)
         if bool(accept.any()):
             # the Jacobian only changes where a step was taken: recompute it once, at the new point
             r, J = problem.residuals_jacobian(theta)
         holder["theta"] = theta
-        mu = torch.where(accept, (mu / 3).clamp_min(1e-12), (mu * 4).clamp_max(1e12))
+        if nielsen:
+            # Nielsen's update from the gain ratio rho (actual / predicted decrease of the linear
+            # model): a good step relaxes the damping by up to 3, a poor one hardly; a rejection
+            # raises it by 2, 4, 8, ... (Madsen, Nielsen & Tingleff 2004, eq. 3.16)
+            pred = (-(g * step).sum(1) + mu * (scale * step * step).sum(1)).clamp_min(1e-300)
+            rho = (cost_before - cost_new) / pred
+            fac = torch.clamp(1 - (2 * rho - 1) ** 3, min=1 / 3)
+            mu = torch.where(accept, (mu * fac).clamp_min(1e-12), (mu * nu).clamp_max(1e12))
+            nu = torch.where(accept, torch.full_like(nu, 2.0), (nu * 2).clamp_max(1e6))
+        else:
+            mu = torch.where(accept, (mu / 3).clamp_min(1e-12), (mu * 4).clamp_max(1e12))
         stalls = torch.where(accept & (rel < tol), stalls + 1, torch.where(accept, 0, stalls))
         if problem.bayesian and bool(accept.any()):
             # re-estimate the decay of the models that moved; the objective changes with it,
@@ -190,7 +214,8 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
             problem.refresh_decay_rows(theta, r, J)  # only the decay rows depend on the decay
             cost = r.pow(2).sum(1)
             log.effective_parameters = gamma.tolist()
-        finished = (stalls >= 3) | (mu >= 1e12) | (cost < stop_loss)
+        finished = (recent.sum(dim=1) < tol) if window else (stalls >= 3)
+        finished = finished | (mu >= 1e12) | (cost < stop_loss)
         active = active & ~finished
         log.lm_iterations = it + 1
         if it % 10 == 0:
@@ -211,8 +236,20 @@ def train(
     lm_tol: float,
     stop_loss: float,
     progress: Callable | None = None,
+    lm_window: int = 0,
+    lm_deadline: float | None = None,
+    lm_nielsen: bool = False,
 ) -> tuple[torch.Tensor, TrainingLog]:
-    """Train ``theta0`` (``(K, P)``) on ``problem``; Ctrl-C keeps the best weights so far."""
+    """Train ``theta0`` (``(K, P)``) on ``problem``; Ctrl-C keeps the best weights so far.
+
+    Levenberg-Marquardt stops a model after 3 accepted steps in a row that lower its loss by less
+    than ``lm_tol`` (relative). With ``lm_window`` > 0 (output error) it stops a model once its
+    relative decrease summed over its last ``lm_window`` iterations is below ``lm_tol`` (rejected
+    steps whose trial changed the loss by less than that count as no decrease: at convergence the
+    trials differ by rounding). ``lm_nielsen`` sets the damping by Nielsen's gain-ratio rule instead
+    of the fixed factors 1/3 and 4. ``lm_deadline`` (a ``time.monotonic()`` value) ends training at
+    the first iteration after that time.
+    """
     log = TrainingLog()
     holder = {"theta": theta0}
     try:
@@ -221,8 +258,8 @@ def train(
         if lm_max_iter > 0:
             with torch.no_grad():
                 _levenberg_marquardt(
-                    problem, holder["theta"], lm_max_iter, lm_tol, stop_loss, log, progress, holder
-                )
+                    problem, holder["theta"], lm_max_iter, lm_tol, stop_loss, log, progress, holder, lm_window,
+                    lm_deadline, lm_nielsen)
     except KeyboardInterrupt:
         log.interrupted = True
         log.stopped_by = "interrupted"
