@@ -21,8 +21,8 @@ from ._fitted import FittedCurve as FittedCurve
 from ._fitted import LinearFittedCurve as LinearFittedCurve
 from ._fitted import NeuralFittedCurve as NeuralFittedCurve
 from ._fitted import SymbolicFittedCurve as SymbolicFittedCurve
-from ._fitted import curve_from_spec as curve_from_spec
-from ._fitted import register_curve_kind as register_curve_kind
+from ._registry import curve_from_spec as curve_from_spec
+from ._registry import register_curve_kind as register_curve_kind
 from ._mlp import ACTIVATIONS as ACTIVATIONS
 from ._mlp import BatchedMLP as BatchedMLP
 from ._neural import EVEN_INPUT_WEIGHTS as EVEN_INPUT_WEIGHTS

@@ -181,6 +181,10 @@ class LinearCurve(AbstractCurve):
     def features(self, u):
         """``(..., p)`` torch tensor of the feature functions at ``u`` (any shape)."""
 
+    def monomial_powers(self) -> tuple[int, ...] | None:
+        """The powers ``k`` when every feature is ``u**k`` (a fast path evaluates them at once), else None."""
+        return None
+
     def feature_derivatives(self, u):
         """``(..., p)``: derivatives of the features in ``u``."""
         import torch
@@ -269,6 +273,18 @@ class LinearParametrisation:
             u = u.unsqueeze(0).expand(theta.shape[0], -1)
         phi = self._features(u)
         return (phi * theta.unsqueeze(1)).sum(-1), phi
+
+    def evaluator(self, theta):
+        """``u -> evaluate(theta, u)`` for fixed ``theta`` (``u``: ``(K, N)``), with the per-call work
+        done once: the coefficients as a column, monomials as one power of the argument."""
+        import torch
+
+        col = theta.unsqueeze(-1)  # (K, p, 1)
+        powers = self.curve.monomial_powers()
+        if powers is not None:
+            pw = torch.tensor(powers, dtype=theta.dtype, device=theta.device)
+            return lambda u: torch.bmm(u.unsqueeze(-1).pow(pw), col).squeeze(-1)
+        return lambda u: torch.bmm(self._features(u), col).squeeze(-1)
 
     def evaluate_all(self, theta, u):
         f, J = self.evaluate_jacobian(theta, u)

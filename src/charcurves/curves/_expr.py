@@ -8,7 +8,10 @@ with the standard library; nothing is executed.
 
 from __future__ import annotations
 
-__all__ = ["ALLOWED_FUNCS", "first_disallowed_token", "expression_cost_problem", "parse_basis_function"]
+import re
+
+__all__ = ["ALLOWED_FUNCS", "first_disallowed_token", "expression_cost_problem", "parse_basis_function",
+           "monomial_power"]
 
 ALLOWED_FUNCS = ("sin", "cos", "tanh", "exp", "log", "sqrt", "sign", "Abs", "atan", "sinh", "cosh", "tan")
 
@@ -174,3 +177,14 @@ def _power_growth(node) -> float:
                 size *= max(1.0, abs(float(n.value)))
         return size * _power_growth(node.left)
     return max([_power_growth(child) for child in ast.iter_child_nodes(node)], default=1.0)
+
+
+def monomial_power(text: str) -> int | None:
+    """``k`` for ``"1"``, ``"z"`` or ``"z**k"`` (spaces allowed), else None."""
+    t = text.replace(" ", "")
+    if t == "1":
+        return 0
+    if t == "z":
+        return 1
+    m = re.fullmatch(r"z\*\*(\d+)", t)
+    return int(m.group(1)) if m else None

@@ -8,11 +8,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .._errors import ModelFileError
-from ._expr import parse_basis_function
+from ._expr import monomial_power, parse_basis_function
 from ._neural import NeuralCurve, jump_log_eps
 
-__all__ = ["FittedCurve", "NeuralFittedCurve", "BasisFittedCurve", "SymbolicFittedCurve", "LinearFittedCurve",
-           "curve_from_spec", "register_curve_kind"]
+__all__ = ["FittedCurve", "NeuralFittedCurve", "BasisFittedCurve", "SymbolicFittedCurve", "LinearFittedCurve"]
 
 
 class FittedCurve(abc.ABC):
@@ -59,6 +58,9 @@ class FittedCurve(abc.ABC):
     def __call__(self, z) -> np.ndarray:
         z = np.asarray(z, dtype=float)
         return self.raw(z) + self.shift
+
+    #: True for curves whose :meth:`expression` is a closed form (known without building it)
+    closed_form: ClassVar[bool] = False
 
     def expression(self):
         """A sympy expression in the symbol ``z`` when the curve is symbolic, else None."""
@@ -282,6 +284,7 @@ class BasisFittedCurve(FittedCurve):
     """
 
     kind = "basis"
+    closed_form = True
 
     def __init__(self, name, argument, domain, basis: list[str], coefficients, shift: float = 0.0):
         super().__init__(name, argument, domain, shift)
@@ -295,10 +298,23 @@ class BasisFittedCurve(FittedCurve):
         if self.coefficients.shape[0] != len(self.basis):
             raise ModelFileError(f"curve {name}: {len(self.basis)} basis functions but "
                                  f"{self.coefficients.shape[0]} coefficients; the model file is corrupted")
-        z = sp.Symbol("z")
-        self._exprs = [parse_basis_function(b) for b in self.basis]
-        self._funcs = [sp.lambdify(z, e, modules="numpy") for e in self._exprs]
-        self._pinned = all(sp.simplify(e.subs(z, 0)) == 0 for e in self._exprs)
+        powers = [monomial_power(b) for b in self.basis]
+        # plain monomials (fitted polynomials and libraries) evaluate without sympy
+        self._powers = None if any(k is None for k in powers) else tuple(int(k or 0) for k in powers)
+        self._exprs_cache: list | None = None
+        if self._powers is None:
+            z = sp.Symbol("z")
+            self._funcs = [sp.lambdify(z, e, modules="numpy") for e in self._exprs]
+            self._pinned = all(sp.simplify(e.subs(z, 0)) == 0 for e in self._exprs)
+        else:
+            self._funcs = [(lambda z, k=k: z**k if k != 1 else z) if k else (lambda z: 1) for k in self._powers]
+            self._pinned = all(k > 0 for k in self._powers)
+
+    @property
+    def _exprs(self) -> list:
+        if self._exprs_cache is None:
+            self._exprs_cache = [parse_basis_function(b) for b in self.basis]
+        return self._exprs_cache
 
     @property
     def pinned_at_zero(self) -> bool:
@@ -310,6 +326,20 @@ class BasisFittedCurve(FittedCurve):
         for c, f in zip(self.coefficients, self._funcs):
             out = out + c * np.broadcast_to(f(z), z.shape)
         return out
+
+    def float_function(self):
+        if self._powers is None:
+            return super().float_function()
+        terms = [(float(c), k) for c, k in zip(self.coefficients, self._powers)]
+        shift = float(self.shift)
+
+        def f(z):
+            s = shift
+            for c, k in terms:
+                s += c * z**k
+            return s
+
+        return f
 
     def expression(self):
         import sympy as sp
@@ -346,6 +376,7 @@ class SymbolicFittedCurve(FittedCurve):
     """
 
     kind = "symbolic"
+    closed_form = True
 
     def __init__(self, name, argument, domain, expression, shift: float = 0.0, meta: dict | None = None):
         super().__init__(name, argument, domain, shift)
@@ -459,41 +490,3 @@ def _plain(obj):
     if isinstance(obj, (np.floating, np.integer)):
         return obj.item()
     return obj
-
-
-# kind -> a FittedCurve subclass with a ``from_spec`` classmethod
-_KINDS: dict[str, Any] = {"neural": NeuralFittedCurve, "basis": BasisFittedCurve, "symbolic": SymbolicFittedCurve,
-                          "linear": LinearFittedCurve}
-
-
-def register_curve_kind(cls) -> None:
-    """Make a FittedCurve subclass loadable from model files (by its ``kind``).
-
-    Examples
-    --------
-    >>> from charcurves.curves import SymbolicFittedCurve, curve_from_spec, register_curve_kind
-    >>> class Checked(SymbolicFittedCurve):  # a closed form with its own kind in model files
-    ...     kind = "checked-symbolic"
-    >>> register_curve_kind(Checked)
-    >>> spec, arrays = Checked("f2", "x", (-2.0, 2.0), "z**3").to_spec()
-    >>> type(curve_from_spec(spec, arrays)).__name__
-    'Checked'
-    """
-    _KINDS[cls.kind] = cls
-
-
-def curve_from_spec(d: dict, arrays: dict) -> FittedCurve:
-    """A fitted curve from its ``to_spec()`` description and arrays (how model files are read).
-
-    Examples
-    --------
-    >>> from charcurves.curves import BasisFittedCurve, curve_from_spec
-    >>> spec, arrays = BasisFittedCurve("f2", "x", (-2.0, 2.0), ["z", "z**3"], [-1.0, 1.0]).to_spec()
-    >>> curve = curve_from_spec(spec, arrays)
-    >>> type(curve).__name__, float(curve(2.0))
-    ('BasisFittedCurve', 6.0)
-    """
-    kind = d.get("kind")
-    if kind not in _KINDS:
-        raise ModelFileError(f"unknown curve kind {kind!r} in the model file; it may come from a newer charcurves")
-    return _KINDS[kind].from_spec(d, arrays)

@@ -45,6 +45,11 @@ def _silu(z):
 #: name -> function returning (activation, derivative)
 ACTIVATIONS = {"tanh": _tanh, "relu": _relu, "softplus": _softplus, "gelu": _gelu, "silu": _silu}
 
+#: name -> the activation alone (the same expressions as the first value of ``ACTIVATIONS``)
+_VALUES = {"tanh": torch.tanh, "relu": torch.relu, "softplus": torch.nn.functional.softplus,
+           "gelu": lambda z: z * (0.5 * (1.0 + torch.erf(z / math.sqrt(2.0)))),
+           "silu": lambda z: z * torch.sigmoid(z)}
+
 
 class BatchedMLP:
     """K independent 1 -> hidden -> ... -> 1 networks as flat parameter vectors.
@@ -99,12 +104,18 @@ class BatchedMLP:
 
     def forward(self, theta: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         """Outputs ``(K, N)`` for inputs ``u`` of shape ``(K, N)`` or ``(N,)``."""
-        h = u.unsqueeze(-1) if u.dim() == 2 else u.reshape(1, -1, 1).expand(theta.shape[0], -1, 1)
-        layers = self._unpack(theta)
+        return self.forward_unpacked(self._unpack(theta), u)
+
+    def forward_unpacked(self, layers, u: torch.Tensor) -> torch.Tensor:
+        """:meth:`forward` with the weights already unpacked (``_unpack``: callers that evaluate the
+        same weights many times unpack them once)."""
+        h = u.unsqueeze(-1) if u.dim() == 2 else u.reshape(1, -1, 1).expand(layers[0][0].shape[0], -1, 1)
+        last = len(layers) - 1
+        act = _VALUES[self.activation]
         for i, (W, b) in enumerate(layers):
             h = torch.baddbmm(b, h, W)
-            if i < len(layers) - 1:
-                h = self._act(h)[0]
+            if i < last:
+                h = act(h)
         return h.squeeze(-1)
 
     def forward_derivative(self, theta: torch.Tensor, u: torch.Tensor):

@@ -301,6 +301,39 @@ class NeuralCurve:
             y = y + mu * torch.tanh(u / eps)
         return y
 
+    def evaluator(self, theta: torch.Tensor):
+        """``u -> evaluate(theta, u)`` for fixed ``theta`` (``u``: ``(K, N)``), with the per-call work
+        done once (output error's free run evaluates the same weights at every integration stage):
+        the weights unpacked and, under an exact parity, the network at ``u`` and ``-u`` laid out as
+        one network of twice the width whose output layer forms ``(h(u) -+ h(-u)) / 2``."""
+        sl = self.slices()
+        mlp = self.mlp
+        layers = mlp._unpack(theta[:, sl["mlp"]])
+        if self.exact_symmetry != "none":
+            layers = _mirrored(layers, self.exact_symmetry)
+        lin = theta[:, sl["linear"]] if self.has_linear else None
+        poly = [(theta[:, sl["poly"]][:, j:j + 1], k) for j, k in enumerate(self.poly_powers)]
+        harm = theta[:, sl["harmonic"]] if self.harmonic_columns else None
+        mu = eps = None
+        if self.jump:
+            mu = theta[:, sl["jump_height"]]
+            eps = torch.exp(jump_log_eps(theta[:, sl["jump_log_eps"]]))
+
+        def f(u):
+            y = mlp.forward_unpacked(layers, u)
+            if lin is not None:
+                y = torch.addcmul(y, lin, u)
+            for c, k in poly:
+                y = torch.addcmul(y, c, u**k)
+            if harm is not None:
+                for j, col in enumerate(self.harmonic_values(u)):
+                    y = torch.addcmul(y, harm[:, j:j + 1], col)
+            if mu is not None:
+                y = torch.addcmul(y, mu, torch.tanh(u / eps))
+            return y
+
+        return f
+
     def evaluate_jacobian(self, theta: torch.Tensor, u: torch.Tensor, u_both: torch.Tensor | None = None):
         """Values ``(K, N)`` and Jacobian ``(K, N, n_params)``."""
         return self._evaluate_jacobian(theta, u, u_both, derivative=False)[:2]
@@ -383,3 +416,19 @@ class NeuralCurve:
         if d is not None and self.has_linear:
             d = d + theta[:, sl["linear"]]
         return y, torch.cat(cols, dim=2), d
+
+
+def _mirrored(layers, sym: str):
+    """The layers of ``u -> (h(u) -+ h(-u)) / 2`` as one network: the first layer sees ``u`` and
+    ``-u`` side by side, the hidden layers act block-diagonally, and the output layer takes the half
+    sum (even) or half difference (odd; the bias cancels)."""
+    (W1, b1), *hidden, (Wn, bn) = layers
+    out = [(torch.cat([W1, -W1], dim=2), torch.cat([b1, b1], dim=2))]
+    for W, b in hidden:
+        Z = torch.zeros_like(W)
+        out.append((torch.cat([torch.cat([W, Z], dim=2), torch.cat([Z, W], dim=2)], dim=1), torch.cat([b, b], dim=2)))
+    if sym == "odd":
+        out.append((0.5 * torch.cat([Wn, -Wn], dim=1), torch.zeros_like(bn)))
+    else:
+        out.append((0.5 * torch.cat([Wn, Wn], dim=1), bn))
+    return out

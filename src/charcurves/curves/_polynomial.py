@@ -126,6 +126,9 @@ class Polynomial(LinearCurve):
             h = max(abs(float(c)), 1.0)  # degenerate (constant) argument: the excitation check refuses it anyway
         return float(c), float(h)
 
+    def monomial_powers(self) -> tuple[int, ...] | None:
+        return tuple(self.powers()) if self.basis_name == "power" else None
+
     def features(self, u):
         import torch
 

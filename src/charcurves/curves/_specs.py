@@ -211,6 +211,9 @@ class SparseLibrary(LinearCurve):
     def scaling(self, z, preset=None):
         return 0.0, 1.0  # pysindy sees the raw powers, as in the paper's scripts
 
+    def monomial_powers(self) -> tuple[int, ...]:
+        return tuple(self.powers())
+
     def features(self, u):
         import torch
 
@@ -308,15 +311,35 @@ class Basis(LinearCurve):
     def scaling(self, z, preset=None):
         return 0.0, 1.0  # the functions are written in the curve's own argument
 
+    def monomial_powers(self) -> tuple[int, ...] | None:
+        """The powers when every function is a plain monomial (``1``, ``z``, ``z**k``, as the fitted
+        polynomials and libraries write them): those evaluate without sympy."""
+        key = tuple(self.function_list())
+        cache = getattr(self, "_monomials", None)
+        if cache is None or cache[0] != key:
+            from ._expr import monomial_power
+
+            powers = [monomial_power(f) for f in key]
+            cache = (key, None if any(k is None for k in powers) else tuple(int(k or 0) for k in powers))
+            self._monomials = cache
+        return cache[1]
+
     def features(self, u):
         import torch
 
+        powers = self.monomial_powers()
+        if powers is not None:
+            return torch.stack([u**k if k > 1 else (u if k == 1 else torch.ones_like(u)) for k in powers], dim=-1)
         funcs = self._compiled()[1]
         return torch.stack([torch.broadcast_to(torch.as_tensor(f(u), dtype=u.dtype), u.shape) for f in funcs], dim=-1)
 
     def feature_derivatives(self, u):
         import torch
 
+        powers = self.monomial_powers()
+        if powers is not None:
+            return torch.stack([k * u ** (k - 1) if k > 2 else (2 * u if k == 2 else torch.full_like(u, float(k)))
+                                for k in powers], dim=-1)
         derivs = self._compiled()[2]
         return torch.stack([torch.broadcast_to(torch.as_tensor(d(u), dtype=u.dtype), u.shape) for d in derivs], dim=-1)
 
@@ -328,6 +351,9 @@ class Basis(LinearCurve):
 
     @property
     def pinned_at_zero(self) -> bool:
+        powers = self.monomial_powers()
+        if powers is not None:
+            return all(k > 0 for k in powers)
         return bool(self._compiled()[3])
 
     def fitted(self, name, argument, domain, theta, center, half_width, out_scale, constant: float = 0.0):

@@ -39,11 +39,11 @@ from ._model import validate_model_document as validate_model_document
 from ._objectives import OBJECTIVES as OBJECTIVES
 from ._objectives import EquationError as EquationError
 from ._objectives import OutputError as OutputError
-from ._output_error import closed_form_text as closed_form_text
+from ._oe_report import closed_form_text as closed_form_text
 from ._output_error import free_run_diagnostics as free_run_diagnostics
 from ._output_error import output_error_fit as output_error_fit
 from ._output_error import refine_output_error as refine_output_error
-from ._output_error import summary_lines as summary_lines
+from ._oe_report import summary_lines as summary_lines
 from ._pipeline import raw_fit as raw_fit
 from ._plots import figure_png as figure_png
 from ._plots import plot_curves as plot_curves

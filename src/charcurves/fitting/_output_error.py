@@ -22,8 +22,8 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ._objectives import OutputError
 
-__all__ = ["free_run_diagnostics", "output_error_fit", "refine_output_error", "closed_form_text", "summary_lines",
-           "choose_substeps", "choose_segment_length"]
+__all__ = ["free_run_diagnostics", "output_error_fit", "refine_output_error", "choose_substeps",
+           "choose_segment_length", "slow_template"]
 
 
 def choose_substeps(x: np.ndarray) -> int:
@@ -196,14 +196,18 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
                               bayesian=bool(settings.bayesian), decay_groups=preset.decay_groups)
     with torch.no_grad():
         loss0 = problem.residuals(theta0)[:, :problem.n_data].pow(2).sum(dim=1)  # the data part only
+        X0, _, _ = problem.simulate(theta0, need_jac=False)  # the free run just done (remembered)
     if not bool(torch.isfinite(loss0).any()):
         return _kept(model, report, "failed: the free run of the equation-error model diverges on every segment")
-    theta, log = train(problem, theta0, adam_steps=0, adam_lr=0.0, lm_max_iter=int(settings.max_iter),
-                       lm_tol=float(settings.tol), stop_loss=0.0, progress=progress)
+    slow = slow_template(fm)
+    max_iter = int(settings.max_iter) if settings.max_iter is not None else (120 if slow else 40)
+    theta, log = train(problem, theta0, adam_steps=0, adam_lr=0.0, lm_max_iter=max_iter,
+                       lm_tol=float(settings.tol), stop_loss=0.0, progress=progress, lm_window=STOP_WINDOW,
+                       lm_deadline=time.monotonic() + float(settings.time_budget) - (time.perf_counter() - started),
+                       lm_nielsen=slow)
     with torch.no_grad():
         # members are compared by their fit to the record (the data rows), not by their decay rows
         loss = problem.residuals(theta)[:, :problem.n_data].pow(2).sum(dim=1).double().numpy()
-        X0, _, _ = problem.simulate(theta0, need_jac=False)
         X1, _, _ = problem.simulate(theta, need_jac=False)
     finite = np.isfinite(loss)
     if not finite.any():
@@ -227,7 +231,7 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     labels += [("b" if e == 0 else f"b{e + 1}") for e in offsets] + (["g"] if template.free_gain else [])
     order = list(range(problem.n_shared))
     if template.free_gain and offsets:  # the older report's order: ..., g, b
-        order = order[:-1 - len(offsets)] + [problem.gain_index] + order[-1 - len(offsets):-1]
+        order = order[:-1 - len(offsets)] + [int(problem.gain_index or 0)] + order[-1 - len(offsets):-1]
         labels = labels[:-1 - len(offsets)] + ["g"] + labels[-1 - len(offsets):-1]
     seg_before = float(np.sqrt(np.mean((X0.double().numpy() - meas[None]) ** 2)))
     seg_after = float(np.sqrt(np.mean((X1.double().numpy()[members] - meas[None]) ** 2)))
@@ -236,7 +240,8 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     report.update({
         "segment_length": L, "segments": int(S), "contiguous_pairs": int(contiguous.sum()),
         "substeps": substeps, "continuity": float(settings.continuity), "members": int(members.size),
-        "iterations": log.lm_iterations, "stopped_by": log.stopped_by,
+        "iterations": log.lm_iterations, "max_iter": max_iter, "stopped_by": log.stopped_by,
+        "damping": "nielsen" if slow else "fixed factors",
         "segmented_rmse_before": seg_before, "segmented_rmse_after": seg_after,
         "loss_before": float(loss0.double().min()), "loss_after": float(loss[best]),
         "member_selection": "AIC within 2 (Bayesian effective parameters)" if crit is not None else
@@ -261,6 +266,20 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     new.info["objective"] = "output-error"
     return new
 
+
+def slow_template(fm) -> bool:
+    """True when a curve of the template is multiplied by a state (van der Pol's ``f1(x) x'``, the
+    first-order family's ``f2(x) x'``) or the template couples several equations (two-DOF): there
+    the output-error fit converges slowly, and gets more iterations and Nielsen's damping (see
+    :class:`OutputError`; docs/measured-records.md has the measurements)."""
+    if fm.divides or len(fm.equations) > 1:  # divides: a curve is a factor of the highest derivative
+        return True
+    return any(m.constant is None for eq in fm.equations for m in eq["mult"].values())
+
+
+#: Levenberg-Marquardt stops a member once its loss fell by less than ``OutputError.tol`` (relative)
+#: over this many iterations (see :func:`._train.train`).
+STOP_WINDOW = 4
 
 #: Members whose Akaike criterion is within this of the best are averaged (Burnham & Anderson:
 #: "substantial support" below 2).
@@ -348,7 +367,7 @@ def _fast_float(curve, n: int = 8193):
     """A function of one float: the closed form, or (other curves) linear interpolation in a table
     over twice the training range (error about 1e-8 of the curve's curvature; far faster per call
     than a network evaluation), extrapolated linearly."""
-    if curve.expression() is not None:
+    if curve.closed_form:
         return curve.float_function()
     lo, hi = curve.domain
     pad = 0.5 * (hi - lo) + 1e-9
@@ -442,59 +461,3 @@ def refine_output_error(model, traj, *, hold: str = "linear", substeps: int = 4,
                            time_budget=time_budget)
     settings.check()
     return output_error_fit(model, traj, traj, settings, preset=get_preset("default"), strict=True)
-
-
-# ------------------------------------------------------------------------------ reporting (CLI)
-def closed_form_text(model, digits: int = 6) -> str:
-    """``x'' + f1(x') + f2(x) + b = g F`` with the closed forms written out (separable family).
-
-    Examples
-    --------
-    >>> from charcurves.curves import SymbolicFittedCurve
-    >>> from charcurves.fitting import FittedModel, closed_form_text
-    >>> from charcurves.templates import get_template
-    >>> curves = {"f1": SymbolicFittedCurve("f1", "x'", (-1, 1), "0.3*z"),
-    ...           "f2": SymbolicFittedCurve("f2", "x", (-2, 2), "z**3 - z")}
-    >>> closed_form_text(FittedModel(get_template(), "demo", curves, gain=1.0, offset=0.0, loss=0.0), digits=3)
-    "x'' + 0.3*x' + (x**3 - x) + 0 = 1*F"
-    """
-    import sympy as sp
-
-    parts = []
-    for name, arg in (("f1", "x'"), ("f2", "x")):
-        expr = model.curves[name].expression()
-        text = "?" if expr is None else str(sp.N(expr, digits)).replace("z", arg)
-        parts.append(f"({text})" if expr is not None and len(sp.Add.make_args(sp.expand(expr))) > 1 else text)
-    sign = "-" if model.offset < 0 else "+"
-    return f"x'' + {parts[0]} + {parts[1]} {sign} {abs(model.offset):.{digits}g} = {model.gain:.{digits}g}*F"
-
-
-def summary_lines(model) -> list[str]:
-    """Lines for the CLI summary describing ``model.info["output_error"]``.
-
-    Examples
-    --------
-    >>> import charcurves as cc
-    >>> from charcurves.fitting import summary_lines
-    >>> from charcurves.systems import get_system
-    >>> record = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 30, on="state", seed=0)
-    >>> model = cc.fit(record, method="parametric", objective=cc.OutputError(segment_length=16, substeps=1, max_iter=2))
-    >>> print(summary_lines(model)[0])
-    output-error refinement (hold linear, 1 RK4 step per sample, 33 segments of 16 samples; 2 iterations, status ok):
-    """
-    oe = model.info.get("output_error", {})
-    if not oe:
-        return []
-    if not oe.get("status", "").startswith(("ok", "interrupted")):
-        return [f"output error: {oe.get('status')}"]
-    how = (f"hold {oe['hold']}, {oe['substeps']} RK4 step{'s' if oe['substeps'] > 1 else ''} per sample, "
-           f"{oe['segments']} segment{'s' if oe['segments'] > 1 else ''} of {oe['segment_length']} samples")
-    lines = [f"output-error refinement ({how}; {oe['iterations']} iterations, status {oe['status']}):",
-             f"  RMSE of the segments' free runs against the measured positions {oe['segmented_rmse_before']:.4g} -> "
-             f"{oe['segmented_rmse_after']:.4g}"]
-    if oe.get("free_run_rmse_after") is not None:
-        lines.append(f"  RMSE of one free run of the whole record {oe['free_run_rmse_before']:.4g} -> "
-                     f"{oe['free_run_rmse_after']:.4g}")
-    if not model.template.is_general and model.is_symbolic:
-        lines.append("  closed form: " + closed_form_text(model))
-    return lines

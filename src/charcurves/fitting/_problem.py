@@ -108,9 +108,17 @@ class LeastSquaresProblem:
         self.decay_group = group[decay].to(self.y.device) if use_decay else None  # (m,) group of each decayed weight
         self.set_weight_decay(self.weight_decay)
 
+    def residuals(self, theta: torch.Tensor) -> torch.Tensor:
+        """Residuals ``(K, R)``: the data's first, the decay's last."""
+        raise NotImplementedError
+
     def residuals_jacobian(self, theta: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Residuals ``(K, R)`` and their Jacobian ``(K, R, P)``, the decay's rows last."""
         raise NotImplementedError
+
+    def data_loss(self, theta: torch.Tensor) -> torch.Tensor:
+        """Sum of squared data residuals per model, ``(K,)``."""
+        return self.residuals(theta)[:, :self.n_data].pow(2).sum(dim=1)
 
     def normal_equations(self, theta: torch.Tensor):
         """``(JtJ, Jtr, cost, data_cost)`` of every residual row but the weight decay's: JtJ

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -164,7 +165,7 @@ def _initial_decay(problem, theta, shape):
         return lam
     problem.set_weight_decay(torch.zeros(shape, dtype=theta.dtype, device=theta.device))
     with torch.no_grad():
-        data = problem.normal_equations(theta)[3]  # (K,)
+        data = problem.data_loss(theta)  # (K,)
     G = problem.n_decay_groups
     masks = torch.zeros(G, theta.shape[1], dtype=theta.dtype, device=theta.device)
     masks[problem.decay_group, problem.decay_index] = 1.0
@@ -189,10 +190,12 @@ def _with_decay(problem, theta, normal):
     return JtJ, g, cost + cost_d
 
 
-def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress, holder, keep_decay=False):
+def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress, holder, window=0,
+                         deadline=None, nielsen=False, keep_decay=False):
     """Batched LM on the normal equations (JtJ and Jtr accumulated by the problem, over chunks of
     samples on long records). ``keep_decay`` continues from the problem's current weight decay
-    (the refinement of a long record, see ``_long_record``) instead of the evidence's start."""
+    (the refinement of a long record, see ``_long_record``) instead of the evidence's start; for
+    ``window``, ``deadline`` and ``nielsen`` see :func:`train`."""
     K, P = theta.shape
     if problem.bayesian and not keep_decay:
         shape = (K,) if problem.n_decay_groups == 1 else (K, problem.n_decay_groups)
@@ -202,9 +205,17 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
     mu = torch.full((K,), 1e-3, dtype=theta.dtype, device=theta.device)
     active = cost > stop_loss
     stalls = torch.zeros(K, dtype=torch.long, device=theta.device)
+    # window > 0: a model stops when its relative decrease summed over its last `window` iterations
+    # is below tol; a rejected step counts (as no decrease) only when its trial changed the loss by
+    # less than tol (rounding-level: nothing left to gain), not when it overshot
+    recent = torch.full((K, max(window, 1)), float("inf"), dtype=theta.dtype, device=theta.device)
     eye = torch.eye(P, dtype=theta.dtype, device=theta.device)
+    nu = torch.full((K,), 2.0, dtype=theta.dtype, device=theta.device)
     for it in range(max_iter):
         if not bool(active.any()):
+            break
+        if deadline is not None and time.monotonic() > deadline:
+            log.stopped_by = "time_budget"
             break
         diag = torch.diagonal(JtJ, dim1=1, dim2=2)
         # Marquardt scaling with a floor so directions the data do not see stay damped
@@ -217,13 +228,18 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
         trial = theta + step
         cost_new = problem.loss(trial)
         accept = active & ok_solve & torch.isfinite(cost_new) & (cost_new < cost)
+        cost_before = cost
         rel = torch.where(accept, (cost - cost_new) / cost.clamp_min(1e-300), torch.zeros_like(cost))
-        # converged where the step is refused by rounding alone: the quadratic model predicts no
-        # decrease above the tolerance and none happened (MINPACK's ftol test); otherwise the
-        # damping would grow to its cap over some 30 refused steps that all leave theta as it is
-        predicted = -(2 * (g * step).sum(1) + (step.unsqueeze(1) @ JtJ @ step.unsqueeze(-1)).view(K))
-        settled = (~accept & ok_solve & (predicted <= tol * cost)
-                   & ((cost_new - cost).abs() <= tol * cost))
+        # the decrease the linear model predicts: -(2 g.s + s'JtJ s) = -g.s + mu s'Ds for the LM step
+        predicted = -(g * step).sum(1) + mu * (scale * step * step).sum(1)
+        # converged where the step is refused by rounding alone: the model predicts no decrease
+        # above the tolerance and none happened (MINPACK's ftol test); otherwise the damping would
+        # grow to its cap over some 30 refused steps that all leave theta as it is
+        rounding = (cost_new - cost).abs() <= tol * cost
+        settled = ~accept & ok_solve & (predicted <= tol * cost) & rounding
+        if window:
+            flat = accept | (active & ok_solve & rounding)
+            recent = torch.where(flat.unsqueeze(-1), torch.cat([recent[:, 1:], rel.unsqueeze(-1)], dim=1), recent)
         theta = torch.where(accept.unsqueeze(-1), trial, theta)
         cost = torch.where(accept, cost_new, cost)
         if bool(accept.any()):
@@ -231,7 +247,16 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
             normal = problem.normal_equations(theta)
             JtJ, g, cost = _with_decay(problem, theta, normal)
         holder["theta"] = theta
-        mu = torch.where(accept, (mu / 3).clamp_min(1e-12), (mu * 4).clamp_max(1e12))
+        if nielsen:
+            # Nielsen's update from the gain ratio rho (actual / predicted decrease of the linear
+            # model): a good step relaxes the damping by up to 3, a poor one hardly; a rejection
+            # raises it by 2, 4, 8, ... (Madsen, Nielsen & Tingleff 2004, eq. 3.16)
+            rho = (cost_before - cost_new) / predicted.clamp_min(1e-300)
+            fac = torch.clamp(1 - (2 * rho - 1) ** 3, min=1 / 3)
+            mu = torch.where(accept, (mu * fac).clamp_min(1e-12), (mu * nu).clamp_max(1e12))
+            nu = torch.where(accept, torch.full_like(nu, 2.0), (nu * 2).clamp_max(1e6))
+        else:
+            mu = torch.where(accept, (mu / 3).clamp_min(1e-12), (mu * 4).clamp_max(1e12))
         stalls = torch.where((accept & (rel < tol)) | settled, stalls + 1, torch.where(accept, 0, stalls))
         if problem.bayesian and bool(accept.any()):
             # re-estimate the decay of the models that moved; the objective changes with it, so
@@ -242,7 +267,8 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
             problem.set_weight_decay(torch.where(moved, lam_new, lam_old))
             JtJ, g, cost = _with_decay(problem, theta, normal)
             log.effective_parameters = gamma.tolist()
-        finished = (stalls >= 3) | (mu >= 1e12) | (cost < stop_loss)
+        finished = (recent.sum(dim=1) < tol) if window else (stalls >= 3)
+        finished = finished | (mu >= 1e12) | (cost < stop_loss)
         active = active & ~finished
         log.lm_iterations = it + 1
         if it % 10 == 0:
@@ -263,10 +289,23 @@ def train(
     lm_tol: float,
     stop_loss: float,
     progress: Callable | None = None,
+    lm_window: int = 0,
+    lm_deadline: float | None = None,
+    lm_nielsen: bool = False,
     keep_decay: bool = False,
 ) -> tuple[torch.Tensor, TrainingLog]:
     """Train ``theta0`` (``(K, P)``) on ``problem``; Ctrl-C keeps the best weights so far.
-    ``keep_decay``: LM continues from the problem's weight decay (see ``_levenberg_marquardt``)."""
+
+    Levenberg-Marquardt stops a model after 3 iterations in a row that lower its loss by less than
+    ``lm_tol`` (relative): accepted steps, or steps refused by rounding alone (the linear model
+    predicts less and the trial's loss differs by less). With ``lm_window`` > 0 (output error) it
+    stops a model once its relative decrease summed over its last ``lm_window`` iterations is below
+    ``lm_tol`` (rejected steps whose trial changed the loss by less than that count as no decrease:
+    at convergence the trials differ by rounding). ``lm_nielsen`` sets the damping by Nielsen's
+    gain-ratio rule instead of the fixed factors 1/3 and 4. ``lm_deadline`` (a ``time.monotonic()``
+    value) ends training at the first iteration after that time. ``keep_decay``: LM continues from
+    the problem's weight decay (the refinement of a long record) instead of the evidence's start.
+    """
     log = TrainingLog()
     holder = {"theta": theta0}
     try:
@@ -275,8 +314,8 @@ def train(
         if lm_max_iter > 0:
             with torch.no_grad():
                 _levenberg_marquardt(
-                    problem, holder["theta"], lm_max_iter, lm_tol, stop_loss, log, progress, holder, keep_decay
-                )
+                    problem, holder["theta"], lm_max_iter, lm_tol, stop_loss, log, progress, holder, lm_window,
+                    lm_deadline, lm_nielsen, keep_decay)
     except KeyboardInterrupt:
         log.interrupted = True
         log.stopped_by = "interrupted"
