@@ -7,7 +7,6 @@ import math
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from ._base import BenchmarkSystem, solver_failed
 
@@ -71,6 +70,7 @@ class Duffing(BenchmarkSystem):
             x, v = float(y[0]), float(y[1])
             return [v, A * math.cos(Om * t) - d * v - al * x - be * x**3]
 
+        from scipy.integrate import solve_ivp  # lazily: importing the systems stays light
         sol = solve_ivp(
             rhs, (t_eval[0], t_eval[-1]), [self.x0, self.v0], method="LSODA",
             t_eval=t_eval, rtol=rtol, atol=atol,

@@ -7,7 +7,6 @@ import math
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from .._errors import ConfigError, DataError, SimulationError
 from ..data import Trajectory
@@ -153,6 +152,7 @@ class StickSlip(BenchmarkSystem):
             x, v = float(y[0]), float(y[1])
             return [v, A * math.cos(Om * t) - c * v - muN * math.tanh(sc * v) - k * x]
 
+        from scipy.integrate import solve_ivp  # lazily: importing the systems stays light
         sol = solve_ivp(
             rhs, (t_eval[0], t_eval[-1]), [self.x0, self.v0], method="LSODA",
             t_eval=t_eval, rtol=rtol, atol=atol,
@@ -258,6 +258,7 @@ class StickSlip(BenchmarkSystem):
 
             stopped.terminal = True
             stopped.direction = -s  # only v leaving the slip direction; v = 0 at a restart is ignored
+            from scipy.integrate import solve_ivp  # lazily: importing the systems stays light
             sol = solve_ivp(
                 rhs, (t, t_final), [x, v], method="LSODA", dense_output=True,
                 events=stopped, rtol=rtol, atol=atol,
