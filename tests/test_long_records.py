@@ -116,7 +116,9 @@ def test_two_stage_fit_reaches_the_whole_record_optimum(monkeypatch, long_duffin
     monkeypatch.setattr(_long_record, "SUBSET_SAMPLES", 10**9)
     one = cc.fit(rec, method="nn-cc+sym", preset=preset, random_state=0, threads=1)
     assert two.info["long_record"]["subset_samples"] == 1500 and "long_record" not in one.info
-    assert 1 <= two.info["long_record"]["refine_iterations"] < 60
+    # the refinement starts near the whole record's optimum and stops on its own (a stall), in 4-5 LM
+    # iterations on noise seeds 1-3 (measured); one that ran to its budget of 60 would fail here
+    assert two.info["stopped_by"] == "stall" and two.info["long_record"]["refine_iterations"] <= 10
     assert two.loss == pytest.approx(one.loss, rel=1e-5)
     errs = curve_errors(two, system.true_curves())
     assert errs["f1"] < 2e-3 and errs["f2"] < 2e-3, errs  # 6x the paper's 1000 samples at 20 dB
