@@ -140,7 +140,7 @@ class LeastSquaresProblem:
         idx = self.decay_index
         assert idx is not None  # called only when the problem has decay rows
         K, m = theta.shape[0], idx.numel()
-        sq = self._sqrt_wd.expand(K, m) if self._sqrt_wd.dim() else self._sqrt_wd.expand(K, m)
+        sq = self._sqrt_wd.expand(K, m)
         w2 = sq * sq
         cost = (w2 * theta[:, idx].pow(2)).sum(1)
         if self.frozen is not None:
@@ -365,7 +365,7 @@ class BatchedProblem(LeastSquaresProblem):
         """Sum of squared data residuals per model, ``(K,)``, over chunks of samples."""
         chunks = self._chunks()
         if chunks == [None]:
-            return self.residuals(theta)[:, :self.n_data].pow(2).sum(dim=1)
+            return super().data_loss(theta)
         total = theta.new_zeros(theta.shape[0])
         for sl in chunks:
             total = total + self._weighted_data(theta, sl).pow(2).sum(dim=1)
