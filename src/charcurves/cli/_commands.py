@@ -164,7 +164,7 @@ def cmd_benchmark(a) -> int:
     res = run_benchmark(a.out, systems=systems, methods=methods, snr_db=snr, realizations=a.realizations,
                         full=a.full, preset=a.preset, executor=executor, workers=a.workers,
                         forward_cases=a.forward_cases, skip=skip, progress=not a.quiet,
-                        retry_failed=a.retry_failed, base_seed=a.seed, address=address)
+                        retry_failed=a.retry_failed, base_seed=a.seed, address=address, noise_on=a.noise_on)
     say(f"benchmark: {res}", a.quiet)
     return 0
 

@@ -187,6 +187,9 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     b.add_argument("--forward-cases", type=int, default=None, help="validation cases per model (default 2; --full: 10)")
     b.add_argument("--skip", default="", help="side studies to leave out: forward,lyapunov,miw,sensitivity,appendix-f")
     b.add_argument("--retry-failed", action="store_true", help="also rerun jobs stored as failed")
+    b.add_argument("--noise-on", choices=["force", "state"], default="force",
+                   help="force: the paper's main study (default); state: Appendix F alone, noise on x, the paper's "
+                        "protocol (Savitzky-Golay + equation error) beside the default (output error)")
     b.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     return p
 

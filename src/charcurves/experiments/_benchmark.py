@@ -249,7 +249,8 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
                   realizations: int | None = None, full: bool = False, preset: str = "default",
                   executor: str = "local", workers: int | None = None, forward_cases: int | None = None,
                   skip: Sequence[str] = (), progress: bool = True, t_end: float = 40.0, n_points: int = 1000,
-                  base_seed: int = 0, retry_failed: bool = False, address: str | None = None) -> BenchmarkResult:
+                  base_seed: int = 0, retry_failed: bool = False, address: str | None = None,
+                  noise_on: str = "force") -> BenchmarkResult:
     """Run the paper's study and write ``results.csv``, ``report.md`` and ``report.html`` in ``out_dir``.
 
     Parameters
@@ -282,6 +283,10 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
         Enters every dataset seed.
     retry_failed : bool
         Also rerun jobs stored as failed (e.g. after a worker was killed).
+    noise_on : {"force", "state"}
+        ``"force"``: the paper's main study (noise on the forcing) with its side studies.
+        ``"state"``: Appendix F alone, on the grid given (noise on x only; the paper's protocol,
+        Savitzky-Golay and equation error, beside charcurves' default, output error); nothing else runs.
 
     Returns
     -------
@@ -313,6 +318,10 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
     if executor not in EXECUTORS:
         raise ConfigError(f"executor must be one of {', '.join(EXECUTORS)}, got {executor!r}")
     get_preset(preset)
+    if noise_on not in ("force", "state"):
+        raise ConfigError(f"noise_on must be 'force' (the main study) or 'state' (Appendix F), got {noise_on!r}")
+    if noise_on == "state":  # Appendix F alone: the main sweep and the other side studies are not run
+        skip = tuple(s for s in BENCHMARK_SECTIONS if s != "appendix-f")
     bad_skip = [s for s in skip if s not in BENCHMARK_SECTIONS]
     if bad_skip:
         raise ConfigError(f"unknown section {bad_skip[0]!r} to skip; choose from {', '.join(BENCHMARK_SECTIONS)}")
@@ -349,19 +358,28 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
                   method_options=_sr_budget(methods, sizes["sr_generations"]))
     store = os.path.join(out_dir, "results.sqlite")
     assert not isinstance(sweep.realizations, int)  # Sweep made it a tuple
-    _log(progress, f"main sweep: {len(sweep.jobs())} jobs ({len(systems)} systems x {len(methods)} methods x "
-                   f"{len(sweep.snr_db)} SNR levels x {len(sweep.realizations)} realisations), "
-                   f"{sizes['forward_cases']} validation cases per model")
-    rep = run_sweep(sweep, store, executor=executor, workers=workers, progress=progress, address=address,
-                    forward_cases=sizes["forward_cases"], case_time_budget=sizes["case_time_budget"],
-                    # no per-job budget: it would count the fit too and leave a slow (paper-preset) model no
-                    # validation at all; the per-case budget bounds the validation to cases x budget
-                    save_models=os.path.join(out_dir, "models"),
-                    retry_failed=retry_failed)
-    timing["main sweep"] = time.perf_counter() - t0
-    df = results_frame(store)
+    n_jobs = n_run = 0
+    if noise_on == "force":
+        _log(progress, f"main sweep: {len(sweep.jobs())} jobs ({len(systems)} systems x {len(methods)} methods x "
+                       f"{len(sweep.snr_db)} SNR levels x {len(sweep.realizations)} realisations), "
+                       f"{sizes['forward_cases']} validation cases per model")
+        rep = run_sweep(sweep, store, executor=executor, workers=workers, progress=progress, address=address,
+                        forward_cases=sizes["forward_cases"], case_time_budget=sizes["case_time_budget"],
+                        # no per-job budget: it would count the fit too and leave a slow (paper-preset) model no
+                        # validation at all; the per-case budget bounds the validation to cases x budget
+                        save_models=os.path.join(out_dir, "models"),
+                        retry_failed=retry_failed)
+        n_jobs, n_run = rep.n_jobs, rep.n_run
+        timing["main sweep"] = time.perf_counter() - t0
+    if os.path.exists(store) or noise_on == "force":
+        df = results_frame(store)
+    else:  # Appendix F alone: no main store is created
+        import pandas as pd
+
+        df = pd.DataFrame(columns=list(RESULT_COLUMNS))
     csv_path = os.path.join(out_dir, "results.csv")
-    _write_csv(df, csv_path)
+    if noise_on == "force":
+        _write_csv(df, csv_path)
 
     extras = _Extras(os.path.join(out_dir, "extras.json"))
     ctx = _Context(out_dir=out_dir, systems=systems, methods=methods, preset=preset, sizes=sizes,
@@ -369,7 +387,8 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
                    workers=workers, progress=progress, skip=tuple(skip), sweep=sweep, address=address)
 
     # ------------------------------------------------------------------ side studies
-    from ._side_studies import appendix_f, lyapunov, miw_study, sensitivity
+    from ._appendix_f import appendix_f
+    from ._side_studies import lyapunov, miw_study, sensitivity
 
     if "lyapunov" not in skip and "duffing" in systems:
         t0 = time.perf_counter()
@@ -387,15 +406,21 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
         timing["sensitivity"] = time.perf_counter() - t0
     if "appendix-f" not in skip and not (slow_preset and any(m in NEURAL for m in methods)):
         t0 = time.perf_counter()
-        appendix_f(ctx)
+        af_jobs, af_run = appendix_f(ctx)
         timing["appendix-f"] = time.perf_counter() - t0
+        if noise_on == "state":  # the Appendix F study is the run: its jobs and CSV are what it reports
+            n_jobs, n_run, csv_path = af_jobs, af_run, os.path.join(out_dir, "appendix_f.csv")
 
     # ------------------------------------------------------------------ report
     t0 = time.perf_counter()
     md, page = build_report(out_dir, ctx=ctx, extras=extras, df=df, timing=timing)
     timing["report"] = time.perf_counter() - t0
     n_failed = int((df["status"] != "ok").sum()) if len(df) else 0
-    res = BenchmarkResult(out_dir, csv_path, md, page, rep.n_jobs, rep.n_run, n_failed,
+    if noise_on == "state":
+        from ._appendix_f import protocol_frames
+
+        n_failed = sum(int((f["status"] != "ok").sum()) for f in protocol_frames(out_dir).values())
+    res = BenchmarkResult(out_dir, csv_path, md, page, n_jobs, n_run, n_failed,
                           time.perf_counter() - t_start, timing)
     return res
 

@@ -4,7 +4,6 @@ its data are absent from the run (a method not run, a side study skipped)."""
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Mapping
 from typing import Any
 
@@ -19,10 +18,10 @@ from ._benchmark import (
     cost_table,
     ensemble_table,
     performance_table,
-    results_frame,
     status_table,
     tsep_failure_snr,
 )
+from ._appendix_f import appendix_f_section, protocol_frames
 from ._report_figures import forward_panels, phase_space
 
 __all__ = ["write_all"]
@@ -79,6 +78,8 @@ def write_all(rep, *, df, ctx, extras, out_dir: str, timing: Mapping[str, float]
         ("Appendix C", lambda: _sensitivity(rep, extras)),
         ("Appendix G", lambda: _cost(rep, df)),
     ]
+    if not len(df) and protocol_frames(out_dir):  # `benchmark --noise-on state`: Appendix F alone
+        sections = [sec for sec in sections if sec[0] in ("What was run", "Appendix F")]
     for name, build in sections:
         try:
             build()
@@ -94,7 +95,14 @@ def write_all(rep, *, df, ctx, extras, out_dir: str, timing: Mapping[str, float]
 def _overview(rep, df, ctx, timing, out_dir) -> None:
     rep.heading("What was run")
     if not len(df):
-        rep.paragraph("The results store holds no benchmark rows yet: every section below is empty.")
+        if protocol_frames(out_dir):
+            rep.paragraph("This folder holds the Appendix F study alone (`benchmark --noise-on state`): noise on x, "
+                          "no main study (noise on the forcing).")
+            if timing:
+                rep.table(["stage", "wall time (s)"], [[k, float(v)] for k, v in timing.items()],
+                          caption="Wall time of this invocation's stages (a resumed run skips finished jobs).")
+        else:
+            rep.paragraph("The results store holds no benchmark rows yet: every section below is empty.")
         return
     grid = []
     for system in _systems(df):
@@ -352,55 +360,7 @@ def _performance(rep, df, fits) -> None:
 
 # ---------------------------------------------------------------------- App. F
 def _appendix_f(rep, out_dir: str) -> None:
-    from ..report._study import plot_rmse_vs_noise
-
-    rep.heading("Appendix F: noise on x, derivatives by Savitzky-Golay")
-    store = os.path.join(out_dir, "appendix_f.sqlite")
-    if not os.path.exists(store):
-        rep.paragraph("Not run (the `appendix-f` section was skipped, or neural methods ran with the paper "
-                      "preset without --full).")
-        return
-    df = results_frame(store, noise_on="state")
-    if not len(df):
-        rep.paragraph("The Appendix F store holds no rows.")
-        return
-    tabs = {col: ensemble_table(df, col) for col in ("rmse_f1", "rmse_f2")}
-    rows = []
-    for (system, preset, method) in tabs["rmse_f1"]:
-        eta1, e1, _ = tabs["rmse_f1"][(system, preset, method)]
-        eta2, e2, _ = tabs["rmse_f2"].get((system, preset, method), (eta1, np.full_like(e1, np.nan), None))
-        pv = paper.APPENDIX_F.get(system, {}).get(method)
-        snrs = [math.inf if eta == 0 else round(-20.0 * math.log10(eta), 6) + 0.0 for eta in eta1]
-        # the paper's levels when the run has them, else at most six of the run's (the full grid has 61)
-        shown = [x for x in snrs if any(abs(x - q) < 1e-6 for q in paper.APPENDIX_F_SNR)] or snrs[:6]
-        for i, snr in enumerate(snrs):
-            if snr not in shown:
-                continue
-            k = next((k for k, s in enumerate(paper.APPENDIX_F_SNR) if abs(s - snr) < 1e-6), None)
-            i2 = np.flatnonzero(np.isclose(eta2, eta1[i]))
-            rows.append([system, preset, method, _snr_text(snr), e1[i],
-                         pv[0][k] if pv and k is not None else None, e2[i2[0]] if i2.size else None,
-                         pv[1][k] if pv and k is not None else None])
-    rep.table(["system", "preset", "method", "SNR dB", "RMSE f1", "paper", "RMSE f2", "paper"], rows,
-              caption="Ensemble RMSE (mean of per-run values) with Gaussian noise on x (σ from var(x)) and v, a "
-                      "estimated by the library's Savitzky-Golay differentiator (window 31, order 3, as the "
-                      f"scripts). Paper values at 40/20/0 dB: {paper.SOURCES['appendix_f']}.")
-    for system in _systems(df):
-        for preset in _presets(df):
-            sub = df[(df["system"] == system) & (df["preset"] == preset)]
-            if not len(sub):
-                continue
-            fig, axes = _fig(1, 2, figsize=(10.0, 3.6), squeeze=False)
-            for j, col in enumerate(("rmse_f1", "rmse_f2")):
-                tab = ensemble_table(sub, col)
-                plot_rmse_vs_noise({m: (v[0], v[1]) for (s, p, m), v in tab.items()}, ax=axes[0][j],
-                                   ylabel=col.replace("rmse_", "RMSE[") + "]", title=f"{system} ({preset})")
-            fig.tight_layout()
-            rep.figure(fig, f"appendix-f-{system}-{preset}",
-                       caption=f"Appendix F, {system}: RMSE vs η with noise on x.")
-    failed = int((df["status"] != "ok").sum())
-    if failed:
-        rep.paragraph(f"{failed} Appendix F jobs failed; their errors are in appendix_f.csv.")
+    appendix_f_section(rep, out_dir, _fig)
 
 
 # ---------------------------------------------------------------------- App. C

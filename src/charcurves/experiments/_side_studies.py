@@ -1,16 +1,15 @@
 """The benchmark's side studies: the Lyapunov exponent, MIW ensembles (Table 1), the NN-CC
-sensitivity (Appendix C) and noise on the state (Appendix F). Each stores its result in
+sensitivity (Appendix C); noise on the state (Appendix F) is in ``_appendix_f``. Each stores its result in
 ``extras.json`` (or its own results store) under a signature of its settings, so reruns skip it."""
 
 from __future__ import annotations
 
-import os
 import time
 from typing import Any
 
-from ._benchmark import BENCHMARK_TAG, MIW_METHODS, _Context, _Extras, _log, _sr_budget, _write_csv, results_frame
+from ._benchmark import MIW_METHODS, _Context, _Extras, _log
 
-__all__ = ["lyapunov", "miw_study", "sensitivity", "appendix_f", "SENSITIVITY_VARIATIONS", "SENSITIVITY_FULL_EXTRA"]
+__all__ = ["lyapunov", "miw_study", "sensitivity", "SENSITIVITY_VARIATIONS", "SENSITIVITY_FULL_EXTRA"]
 
 
 def _dataset(ctx: _Context, system: str, snr: float, realization: int, noise_on: str = "force"):
@@ -129,19 +128,3 @@ def _is_base(base, setting: str, value) -> bool:
     if setting == "width":
         return all(h == int(value) for h in base.hidden)
     return getattr(base, setting) == value
-
-
-def appendix_f(ctx: _Context) -> None:
-    """Appendix F: noise on x, derivatives by Savitzky-Golay, CC errors only (its own store)."""
-    from ._sweep import Sweep, run_sweep
-
-    reals = min(int(ctx.sizes["realizations"]), int(ctx.sizes["appendix_f_realizations"]))
-    sweep = Sweep(systems=ctx.systems, methods=ctx.methods, snr_db=ctx.sizes["snr_db"],
-                  realizations=reals, noise_on="state", options={"derivatives": "savgol"},
-                  method_options=_sr_budget(ctx.methods, ctx.sizes["sr_generations"]),
-                  preset=ctx.preset, t_end=ctx.t_end, n_points=ctx.n_points, base_seed=ctx.base_seed,
-                  tag=BENCHMARK_TAG)
-    _log(ctx.progress, f"Appendix F (noise on x, Savitzky-Golay): {len(sweep.jobs())} jobs")
-    store = os.path.join(ctx.out_dir, "appendix_f.sqlite")
-    run_sweep(sweep, store, executor=ctx.executor, workers=ctx.workers, progress=ctx.progress, address=ctx.address)
-    _write_csv(results_frame(store, noise_on="state"), os.path.join(ctx.out_dir, "appendix_f.csv"))
