@@ -127,9 +127,16 @@ def build_report(out_dir: str | os.PathLike, *, timing: Mapping[str, float] | No
 
     Examples
     --------
+    ``build_report("bench")`` rewrites bench/report.md and bench/report.html. A folder without the
+    files is refused, naming the first one missing:
+
+    >>> import tempfile
     >>> from charcurves.experiments import build_report
-    >>> build_report("benchmarks/results/duffing-full")  # doctest: +SKIP
-    ('benchmarks/results/duffing-full/report.md', 'benchmarks/results/duffing-full/report.html')
+    >>> try:
+    ...     build_report(tempfile.mkdtemp())
+    ... except Exception as exc:
+    ...     print(type(exc).__name__, str(exc).split(" is missing")[0].endswith("results.csv"))
+    ConfigError True
     """
     from ..report._html import Report
     from . import _report_sections as sections
