@@ -110,7 +110,8 @@ def _overview(rep, df, run, timing) -> None:
     if run.get("sizes"):
         s, ran = run["sizes"], set(run.get("sections", ()))
         kind = "the paper's grid (`--full`)" if run.get("full") else "the quick grid (the default)"
-        text = [f"The last invocation used {kind}: {s['forward_cases']} validation cases per model (the paper: 10), "
+        text = [f"The last invocation used {kind}: {s['forward_cases']} validation cases per model, drawn afresh "
+                "for each SNR level and shared by the methods (the paper: 10), "
                 f"per-case simulation budget {s['case_time_budget']:g} s (a case over it counts as failed)."]
         if "miw" in ran:
             text.append(f"MIW ensembles of {s['miw_seeds']} seeds and {s['miw_realizations']} realisations (the "
