@@ -90,3 +90,41 @@ def test_results_csv_of_an_older_release_still_reads(bench, tmp_path):
     old.to_csv(tmp_path / "results.csv", index=False)
     df = read_results_csv(tmp_path / "results.csv")
     assert df["mixed_terms"].isna().all() and len(df) == 1 and df["status"].tolist() == ["ok"]
+
+
+def _section_text(build):
+    from charcurves.report._html import Report
+
+    rep = Report("t")
+    build(rep)
+    return rep.to_markdown()
+
+
+def test_appendix_c_says_when_every_setting_gives_the_same_curves():
+    from charcurves.experiments import _report_sections as sections
+
+    class Extras:  # the two fields the section reads
+        def __init__(self, rows):
+            self.data = {"sensitivity:stick-slip:default": {"value": rows}}
+
+    same = [{"setting": s, "value": v, "loss": 0.0198503157, "rmse_f1": 0.0128688033 * (1 + 1e-9 * k),
+             "rmse_f2": 0.00118815143, "seconds": 1.0, "is_default": k == 0, "effective_parameters": 8.0}
+            for k, (s, v) in enumerate([("activation", "softplus"), ("width", 5), ("adam_lr", 0.1)])]
+    text = _section_text(lambda rep: sections._sensitivity(rep, Extras(same)))
+    assert "stick-slip: every setting gives the same curves" in text
+    assert "switched the networks off on this record (effective parameters 8)" in text
+    differ = [dict(r, rmse_f1=r["rmse_f1"] * (1 + 0.1 * k)) for k, r in enumerate(same)]
+    assert "every setting gives the same curves" not in _section_text(
+        lambda rep: sections._sensitivity(rep, Extras(differ)))
+
+
+def test_the_report_counts_sr_runs_with_mixed_terms_per_level():
+    from charcurves.experiments import _report_sections as sections
+
+    df = pd.DataFrame({"system": "duffing", "preset": "default", "method": "sr", "status": "ok",
+                       "snr_db": [20.0, 20.0, 0.0, 0.0, -5.0], "realization": [0, 1, 0, 1, 0],
+                       "mixed_terms": [0.0, 0.0, 1.0, 2.0, 0.0]})
+    text = _section_text(lambda rep: sections._mixed(rep, df))
+    assert "| duffing | default | sr | 2 | 5 | 0 dB: 2/2 |" in text
+    old = df.assign(mixed_terms=float("nan"))  # a results.csv written before the column existed
+    assert "does not record the mixed terms" in _section_text(lambda rep: sections._mixed(rep, old))
