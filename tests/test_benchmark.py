@@ -108,6 +108,11 @@ def test_noise_on_state_runs_appendix_f_alone_with_both_protocols(tmp_path, caps
     assert "| duffing | parametric | default | default | 30 |" in md
     assert "Table 2" not in md and "could not be built" not in md
     assert (out / "figures" / "appendix-f-duffing-default-default.png").exists()
+    # the report rebuilds from the folder's small files alone (no results.csv in such a folder)
+    before = (out / "report.md").read_bytes()
+    (out / "report.md").unlink()
+    assert main(["benchmark", "--out", str(out), "--report-only", "--quiet"]) == 0
+    assert (out / "report.md").read_bytes() == before
 
 
 @pytest.mark.parametrize("args, message", [
@@ -170,6 +175,8 @@ def test_slope_one_A_and_masks_recovered_from_synthetic_rows():
     assert fits[("duffing", "default", "nn-cc")]["A"]["f1"] == pytest.approx(0.112, rel=1e-12)
     assert fits[("duffing", "default", "sr")]["A"]["f1"] == pytest.approx(0.03, rel=1e-12)
     assert fits[("duffing", "default", "parametric")]["levels"] == 7
+    # SR's fit leaves out -20 dB (eta = 10 > 8): the table says how many levels it used, not how many ran
+    assert fits[("duffing", "default", "sr")]["levels"] == 6
     assert math.isnan(fits[("duffing", "default", "nn-cc")]["A"]["x"])
     # the root-mean-square ensemble of the jittered runs is larger than the mean by a known factor
     rms = a_fit_table(pd.DataFrame(rows), how="rms")

@@ -170,9 +170,9 @@ def test_demo_runs_under_a_minute(tmp_path):
 
 
 ALL_METHODS = ["nn-cc", "nn-cc+post-sr", "nn-cc+sym", "nn-cc+sym+post-sr", "poly-cc", "sindy", "sindy-cc",
-               "sindy-cc+sym", "sindy-cc+sym+post-sr", "sr", "sr-cc", "parametric"]
+               "sindy-cc+sym", "sindy-cc+sym+post-sr", "sr", "sr-cc", "sr-cc+refit", "parametric"]
 SYMBOLIC = {"nn-cc+post-sr", "nn-cc+sym+post-sr", "poly-cc", "sindy", "sindy-cc", "sindy-cc+sym",
-            "sindy-cc+sym+post-sr", "sr", "sr-cc", "parametric"}
+            "sindy-cc+sym+post-sr", "sr", "sr-cc", "sr-cc+refit", "parametric"}
 
 
 #: (f1, f2) curve-RMSE bounds of each method on the 30 dB Duffing record of `duffing_csv`. Measured
@@ -184,7 +184,8 @@ SYMBOLIC = {"nn-cc+post-sr", "nn-cc+sym+post-sr", "poly-cc", "sindy", "sindy-cc"
 BOUNDS = {"nn-cc": (3e-3, 3e-3), "nn-cc+post-sr": (3e-3, 1.6e-3), "nn-cc+sym": (2e-4, 1.8e-3),
           "nn-cc+sym+post-sr": (2e-4, 1.5e-3), "poly-cc": (4e-3, 3.2e-3), "sindy": (2.8e-3, 2.8e-3),
           "sindy-cc": (2.7e-3, 2.8e-3), "sindy-cc+sym": (1.4e-3, 1.7e-3), "sindy-cc+sym+post-sr": (4e-4, 1.1e-3),
-          "sr": (2e-4, 1.3e-3), "sr-cc": (2.4e-4, 1.5e-3), "parametric": (2.4e-4, 1.5e-3)}
+          "sr": (2e-4, 1.3e-3), "sr-cc": (2.4e-4, 1.5e-3), "sr-cc+refit": (2.4e-4, 1.5e-3),
+          "parametric": (2.4e-4, 1.5e-3)}
 
 
 @pytest.fixture(scope="module")

@@ -86,9 +86,12 @@ def test_noise_seeds_identical_across_methods_and_distinct_across_datasets():
     # stable across processes and versions (a hash of the dataset's identity, not Python's hash())
     assert dataset_seed("noise", "duffing", "paper", "force", 20.0, 0) == 6385019594570048337
     assert dataset_seed("noise", "duffing", "paper", "force", 20, 0) == 6385019594570048337  # int or float SNR
-    # validation cases are shared across SNR levels of a realisation
-    v = {(j.system, j.realization): j.validation_seed for j in jobs}
-    assert all(j.validation_seed == v[(j.system, j.realization)] for j in jobs)
+    # validation cases are drawn afresh for each SNR level (the paper's protocol), shared by the methods
+    v = {(j.system, j.snr_db, j.realization): j.validation_seed for j in jobs}
+    assert all(j.validation_seed == v[(j.system, j.snr_db, j.realization)] for j in jobs)
+    assert len(set(v.values())) == 2 * 3 * 3
+    assert dataset_seed("validation", "duffing", "paper", None, 20.0, 0, bits=31) == \
+        next(j.validation_seed for j in jobs if (j.system, j.snr_db, j.realization) == ("duffing", 20, 0))
     # the noisy datasets the methods see are the same arrays
     system = get_system("duffing")
     clean = system.simulate()
@@ -382,6 +385,8 @@ def test_sweep_with_forward_cases_records_tsep_and_rmse_x(tmp_path):
     assert 0 < row["t_sep_mean"] <= 80 and row["rmse_x_mean"] >= 0
     assert len(row["extra"]["forward"]["cases"]) == 2
     assert '"forward"' in row["config"]  # the validation settings are part of the job's identity
+    # cases drawn per level: rows of stores whose cases were shared across levels are other jobs
+    assert '"seeds":"per-level"' in row["config"]
     rep = run_sweep(_tiny_sweep(snr_db=[40], realizations=1), path, workers=1, progress=False)
     assert rep.n_run == 1  # without forward cases it is another job
 

@@ -146,6 +146,18 @@ def cmd_benchmark(a) -> int:
     from ..experiments._benchmark import BENCHMARK_SECTIONS, SYSTEMS, parse_name_list, parse_snr_list, run_benchmark
     from ..fitting import METHODS
 
+    if a.report_only:
+        given = [flag for flag, v in (("--methods", a.methods), ("--snr", a.snr), ("--realizations", a.realizations),
+                                      ("--full", a.full or None), ("--forward-cases", a.forward_cases),
+                                      ("--retry-failed", a.retry_failed or None), ("--skip", a.skip.strip() or None),
+                                      ("--noise-on", None if a.noise_on == "force" else a.noise_on))
+                 if v is not None]
+        if given:
+            raise UsageError(f"--report-only runs nothing, so {given[0]} has no effect; drop {given[0]} (or "
+                             "--report-only to run the benchmark)")
+        res = run_benchmark(a.out, report_only=True)
+        say(f"benchmark: rebuilt {res.report_md} and {res.report_html} from the files in {a.out}", a.quiet)
+        return 0
     systems = parse_name_list(a.systems, SYSTEMS, "systems")
     methods = parse_name_list(a.methods, tuple(METHODS), "methods") if a.methods is not None else None
     snr = parse_snr_list(a.snr) if a.snr is not None else None

@@ -169,7 +169,7 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     b.add_argument("--out", required=True, help="output directory (results.sqlite there makes reruns resume)")
     b.add_argument("--systems", default="duffing,stick-slip", help="comma-separated: duffing,stick-slip")
     b.add_argument("--methods", default=None,
-                   help=f"comma-separated methods (default: all twelve: {', '.join(METHODS)})")
+                   help=f"comma-separated methods (default: all: {', '.join(METHODS)})")
     b.add_argument("--snr", default=None,
                    help="comma-separated SNR levels in dB (default 40,20,0; --full: 40..-20)")
     b.add_argument("--realizations", type=int, default=None,
@@ -190,6 +190,9 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     b.add_argument("--noise-on", choices=["force", "state"], default="force",
                    help="force: the paper's main study (default); state: Appendix F alone, noise on x, the paper's "
                         "protocol (Savitzky-Golay + equation error) beside the default (output error)")
+    b.add_argument("--report-only", action="store_true",
+                   help="run nothing: rebuild report.md/.html and figures/ from the files in --out (results.csv, "
+                        "run.json, extras.json, appendix_f.csv)")
     b.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     return p
 

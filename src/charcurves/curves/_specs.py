@@ -377,6 +377,11 @@ class Symbolic(AbstractCurve):
     joint : bool
         Search all curves of the template as one bivariate expression and decompose it afterwards
         (the paper's SR, method x) instead of the block-coordinate SR-CC loop.
+    refit : bool
+        SR-CC only: after the loop, refit the outer coefficients of every curve's terms (and the
+        constant, and a free gain) jointly by least squares on the equation, keeping the structure
+        SR found (method ``"sr-cc+refit"``). False (the default, ``"sr-cc"``) keeps the coefficients
+        of each curve's own search, as the paper's SR-CC does.
 
     Notes
     -----
@@ -390,17 +395,25 @@ class Symbolic(AbstractCurve):
     Separable(f1=Symbolic(operators=['add', 'mul', 'tanh']), f2=Symbolic())
     >>> Symbolic(joint=True).kind
     'symbolic'
+    >>> Symbolic(refit=True)
+    Symbolic(refit=True)
     """
 
     kind = "symbolic"
 
-    def __init__(self, operators="auto", joint: bool = False):
+    def __init__(self, operators="auto", joint: bool = False, refit: bool = False):
         self.operators = operators
         self.joint = joint
+        self.refit = refit
 
     def check(self) -> None:
         if not isinstance(self.joint, bool):
             raise ConfigError(f"Symbolic joint must be True or False, got {self.joint!r}")
+        if not isinstance(self.refit, bool):
+            raise ConfigError(f"Symbolic refit must be True or False, got {self.refit!r}")
+        if self.joint and self.refit:
+            raise ConfigError("Symbolic(joint=True) (SR) already refits when it drops mixed terms; refit=True is for "
+                              "SR-CC (joint=False)")
         if self.operators != "auto" and not (isinstance(self.operators, (list, tuple))
                                              and all(isinstance(o, str) for o in self.operators)):
             raise ConfigError(f"Symbolic operators must be 'auto' or a list such as ['add', 'mul', 'tanh'], got "

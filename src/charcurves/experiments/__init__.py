@@ -8,6 +8,7 @@ ResultsStore(path)                         SQLite rows, completed_keys(), to_dat
 make_validation_cases(system, n, seed=)    random conditions whose true trajectory stays in the box
 evaluate_forward(model, system, cases)     t_sep (ε = 0.2, censored) and RMSE[x] per case
 run_benchmark(out_dir, ...)                the paper's study: sweeps, tables, figures, report.md/.html
+build_report(out_dir)                      rebuild the report from results.csv, run.json, extras.json alone
 ray_ensemble_fitter(address)               select_family's ensemble fits as Ray tasks on a cluster
 
 Examples
@@ -20,6 +21,7 @@ Examples
 
 from ._benchmark import BenchmarkResult as BenchmarkResult
 from ._benchmark import run_benchmark as run_benchmark
+from ._report_inputs import build_report as build_report
 from ._remote import ray_ensemble_fitter as ray_ensemble_fitter
 from ._runner import Job as Job
 from ._runner import RunSettings as RunSettings
@@ -52,6 +54,7 @@ from ._validation import training_box as training_box
 
 __all__ = [
     "BenchmarkResult",
+    "build_report",
     "ray_ensemble_fitter",
     "CaseResult",
     "EXECUTORS",

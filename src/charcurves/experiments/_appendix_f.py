@@ -10,8 +10,8 @@ authors' scripts). Two protocols fit every record:
   multiple-shooting segments). With the ``paper`` training preset ``auto`` means equation error, so
   only the paper protocol runs then.
 
-Each protocol has its own results store (``appendix_f.sqlite``, ``appendix_f_default.sqlite``) and
-CSV, so a rerun resumes each one.
+Each protocol has its own results store (``appendix_f.sqlite``, ``appendix_f_default.sqlite``, to
+resume a rerun) and CSV (``appendix_f.csv``, ``appendix_f_default.csv``, what the report is built from).
 """
 
 from __future__ import annotations
@@ -65,15 +65,23 @@ def appendix_f(ctx: _Context) -> tuple[int, int]:
     return n_jobs, n_run
 
 
-def protocol_frames(out_dir: str) -> dict:
-    """``{protocol: results frame}`` of the Appendix F stores present in ``out_dir`` (rows of noise on x)."""
+def protocol_frames(out_dir: str, *, required_for: str | None = None) -> dict:
+    """``{protocol: results frame}`` from the Appendix F CSVs in ``out_dir`` (``appendix_f.csv``,
+    ``appendix_f_default.csv``), what the report is built from. ``required_for``: the preset of a
+    run whose Appendix F ran; the CSV of every protocol that run has must be there (a ConfigError
+    names the missing one)."""
+    from .._errors import ConfigError
+    from ._report_inputs import read_results_csv
+
     out = {}
     for name, (stem, _, _) in PROTOCOLS.items():
-        store = os.path.join(out_dir, f"{stem}.sqlite")
-        if os.path.exists(store):
-            df = results_frame(store, noise_on="state")
-            if len(df):
-                out[name] = df
+        path = os.path.join(out_dir, f"{stem}.csv")
+        if os.path.isfile(path):
+            out[name] = read_results_csv(path)
+        elif required_for is not None and name in _protocols_for(required_for):
+            raise ConfigError(f"cannot rebuild the report: {path} is missing (the Appendix F jobs of the {name} "
+                              "protocol, which run.json says were run); restore the file, or run `charcurves benchmark` into this folder "
+                              "to write it")
     return out
 
 
@@ -128,13 +136,14 @@ def _a_rows(frames: dict) -> list[list]:
     return rows
 
 
-def appendix_f_section(rep, out_dir: str, fig) -> None:
+def appendix_f_section(rep, frames: dict, fig) -> None:
     """The report's Appendix F section: the paper protocol beside the default, tables and figures.
-    ``fig`` makes a (figure, axes) pair (the report's matplotlib helper)."""
+    ``frames``: as :func:`protocol_frames`; ``fig`` makes a (figure, axes) pair (the report's
+    matplotlib helper)."""
     from ..report import plot_rmse_vs_noise
 
     rep.heading("Appendix F: noise on x (only x measured), the paper's protocol beside charcurves' default")
-    frames = protocol_frames(out_dir)
+    frames = {p: df for p, df in (frames or {}).items() if len(df)}
     if not frames:
         rep.paragraph("Not run (the `appendix-f` section was skipped, or neural methods ran with the paper "
                       "preset without --full).")

@@ -55,7 +55,7 @@ BENCHMARK_SECTIONS = ("forward", "lyapunov", "miw", "sensitivity", "appendix-f")
 #: Columns of results.csv, in order (one row per (system, method, snr_db, realization[, preset]) job).
 RESULT_COLUMNS = ("system", "method", "snr_db", "realization", "rmse_f1", "rmse_f2", "status", "preset",
                   "variant", "noise_on", "eta", "rmse_x", "t_sep", "n_cases", "n_failed_cases", "n_censored",
-                  "seconds", "fit_seconds", "gain", "loss", "error")
+                  "seconds", "fit_seconds", "gain", "loss", "error", "mixed_terms")
 BENCHMARK_TAG = "benchmark"
 SYSTEMS = ("duffing", "stick-slip")
 MIW_METHODS = ("nn-cc", "nn-cc+sym", "nn-cc+sym+post-sr")
@@ -63,7 +63,7 @@ MIW_METHODS = ("nn-cc", "nn-cc+sym", "nn-cc+sym+post-sr")
 METHOD_GROUPS = {
     "NN-CC variants": ("nn-cc", "nn-cc+post-sr", "nn-cc+sym", "nn-cc+sym+post-sr"),
     "sparse regression / polynomial": ("sindy", "sindy-cc", "poly-cc", "sindy-cc+sym", "sindy-cc+sym+post-sr"),
-    "symbolic regression": ("sr", "sr-cc", "parametric"),
+    "symbolic regression": ("sr", "sr-cc", "sr-cc+refit", "parametric"),
 }
 
 #: The quick grid: minutes on a 2-core machine (Appendix F with one realisation per level).
@@ -138,7 +138,8 @@ def results_frame(store_path: str | os.PathLike, *, noise_on: str = "force", tag
             "rmse_x": r.get("rmse_x_mean"), "t_sep": r.get("t_sep_mean"), "n_cases": r.get("n_cases"),
             "n_failed_cases": r.get("n_failed_cases"), "n_censored": r.get("n_censored"),
             "seconds": r.get("seconds"), "fit_seconds": ex.get("fit_seconds"), "gain": r.get("gain"),
-            "loss": r.get("loss"), "error": r.get("error"), "_finished": r.get("finished_at") or "",
+            "loss": r.get("loss"), "error": r.get("error"), "mixed_terms": _mixed_terms(ex),
+            "_finished": r.get("finished_at") or "",
             "_model_path": _model_path(ex.get("model_path"), store_path),
         })
     df = pd.DataFrame(recs, columns=list(RESULT_COLUMNS) + ["_finished", "_model_path"])
@@ -149,9 +150,18 @@ def results_frame(store_path: str | os.PathLike, *, noise_on: str = "force", tag
         df = df.assign(_o=df["method"].map(lambda m: order.get(m, 99))).sort_values(
             ["system", "preset", "_o", "snr_db", "realization"], ascending=[True, True, True, False, True])
         df = df.drop(columns="_o").reset_index(drop=True)
-    for c in ("snr_db", "eta", "rmse_f1", "rmse_f2", "rmse_x", "t_sep", "seconds", "fit_seconds", "gain", "loss"):
+    for c in ("snr_db", "eta", "rmse_f1", "rmse_f2", "rmse_x", "t_sep", "seconds", "fit_seconds", "gain", "loss",
+              "mixed_terms"):
         df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
     return df
+
+
+def _mixed_terms(extra: Mapping[str, Any]) -> float:
+    """How many terms mixing the curves' arguments (x and x') the symbolic expression of a job held
+    (SR: its bivariate search; they are dropped and the separable terms refitted); NaN for methods
+    without such an expression and for rows of older stores."""
+    terms = (extra.get("model_info") or {}).get("mixed_terms")
+    return float(len(terms)) if isinstance(terms, list) else float("nan")
 
 
 def _model_path(path: str | None, store_path) -> str | None:
@@ -174,6 +184,7 @@ from ._tables import (  # noqa: E402 - the tables of the report, re-exported (th
     a_fit_table as a_fit_table,
     cost_table as cost_table,
     ensemble_table as ensemble_table,
+    mixed_terms_table as mixed_terms_table,
     performance_table as performance_table,
     status_table as status_table,
     tsep_failure_snr as tsep_failure_snr,
@@ -230,11 +241,17 @@ class _Extras:
         return None
 
     def put(self, section: str, signature: Mapping[str, Any], value) -> None:
-        from ..io._csv import atomic_write_bytes
         from ._store import _jsonable
 
         self.data[section] = {"signature": _jsonable(signature), "value": _jsonable(value)}
-        atomic_write_bytes(self.path, json.dumps(self.data, indent=1).encode("utf-8"))
+        self.save()
+
+    def save(self) -> None:
+        """Write the file (also when empty: the report's rebuild needs it)."""
+        from ..io._csv import atomic_write_bytes
+
+        # compact: the figures' trajectories make most of it (a few hundred kB for a full study)
+        atomic_write_bytes(self.path, json.dumps(self.data, separators=(",", ":")).encode("utf-8"))
 
 
 def _log(progress: bool, msg: str) -> None:
@@ -250,7 +267,7 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
                   executor: str = "local", workers: int | None = None, forward_cases: int | None = None,
                   skip: Sequence[str] = (), progress: bool = True, t_end: float = 40.0, n_points: int = 1000,
                   base_seed: int = 0, retry_failed: bool = False, address: str | None = None,
-                  noise_on: str = "force") -> BenchmarkResult:
+                  noise_on: str = "force", report_only: bool = False) -> BenchmarkResult:
     """Run the paper's study and write ``results.csv``, ``report.md`` and ``report.html`` in ``out_dir``.
 
     Parameters
@@ -260,7 +277,7 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
     systems : sequence of str
         "duffing", "stick-slip".
     methods : sequence of str, optional
-        Methods (default: all twelve).
+        Methods (default: all of :data:`charcurves.METHODS`: the paper's twelve and sr-cc+refit).
     snr_db, realizations : optional
         The grid; default the quick grid (40, 20, 0 dB x 2), or the paper's (40..-20 dB x 10)
         with ``full``.
@@ -287,6 +304,10 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
         ``"force"``: the paper's main study (noise on the forcing) with its side studies.
         ``"state"``: Appendix F alone, on the grid given (noise on x only; the paper's protocol,
         Savitzky-Golay and equation error, beside charcurves' default, output error); nothing else runs.
+    report_only : bool
+        Run nothing: rebuild ``report.md``, ``report.html`` and ``figures/`` from the small files of
+        ``out_dir`` (``results.csv``, ``run.json``, ``extras.json``, ``appendix_f.csv``), as
+        :func:`build_report`; the grid arguments are then ignored.
 
     Returns
     -------
@@ -307,6 +328,17 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
     from ._sweep import EXECUTORS, PAPER_SNR_DB, Sweep, run_sweep
 
     t_start = time.perf_counter()
+    if report_only:
+        from ._report_inputs import build_report as rebuild
+
+        md, page = rebuild(out_dir)
+        csv = os.path.join(os.fspath(out_dir), "results.csv")
+        if not os.path.isfile(csv):  # an Appendix F folder (`--noise-on state`)
+            csv = os.path.join(os.fspath(out_dir), "appendix_f.csv")
+        df = read_results_csv(csv)
+        return BenchmarkResult(os.fspath(out_dir), csv, md, page,
+                               len(df), 0, int((df["status"] != "ok").sum()), time.perf_counter() - t_start,
+                               {"report": time.perf_counter() - t_start})
     systems = tuple(systems)
     bad = [s for s in systems if s not in SYSTEMS]
     if bad or not systems:
@@ -411,9 +443,19 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
         if noise_on == "state":  # the Appendix F study is the run: its jobs and CSV are what it reports
             n_jobs, n_run, csv_path = af_jobs, af_run, os.path.join(out_dir, "appendix_f.csv")
 
-    # ------------------------------------------------------------------ report
+    # ------------------------------------------------------------------ report, from the files alone
     t0 = time.perf_counter()
-    md, page = build_report(out_dir, ctx=ctx, extras=extras, df=df, timing=timing)
+    from ._report_figures import figure_data
+    from ._report_inputs import run_record, write_run_file
+
+    figure_data(df, {s: sweep.variant_of(s) for s in systems}, extras)
+    extras.save()
+    ran = [name for name in ("lyapunov", "miw", "sensitivity", "appendix-f") if name in timing]
+    write_run_file(out_dir, run_record(systems=systems, methods=methods, preset=preset, full=full, sizes=sizes,
+                                       variants={s: sweep.variant_of(s) for s in systems}, skip=skip, sections=ran,
+                                       timing=timing, t_end=t_end, n_points=n_points, base_seed=base_seed,
+                                       noise_on=noise_on))
+    md, page = build_report(out_dir)
     timing["report"] = time.perf_counter() - t0
     n_failed = int((df["status"] != "ok").sum()) if len(df) else 0
     if noise_on == "state":
@@ -431,7 +473,7 @@ def _sr_budget(methods: Sequence[str], generations: int | None) -> dict[str, dic
     if generations is None:
         return {}
     return {m: {"sr_options": {"generations": int(generations)}} for m in methods
-            if m in ("sr", "sr-cc") or m.endswith("post-sr")}
+            if m in ("sr", "sr-cc", "sr-cc+refit") or m.endswith("post-sr")}
 
 
 @dataclasses.dataclass
@@ -460,19 +502,5 @@ def _write_csv(df, path: str) -> None:
     os.replace(tmp, path)
 
 
-# ---------------------------------------------------------------------- the report
-def build_report(out_dir: str | os.PathLike, *, ctx: _Context | None = None, extras: _Extras | None = None,
-                 df=None, timing: Mapping[str, float] | None = None) -> tuple[str, str]:
-    """Write ``report.md`` and ``report.html`` from what ``out_dir`` holds (the stores and
-    ``extras.json``); sections without data say so. Returns the two paths."""
-    from ..report._html import Report
-    from . import _report_sections as sections
-
-    out_dir = os.fspath(out_dir)
-    if df is None:
-        df = results_frame(os.path.join(out_dir, "results.sqlite"))
-    if extras is None:
-        extras = _Extras(os.path.join(out_dir, "extras.json"))
-    rep = Report("charcurves benchmark: the paper's study")
-    sections.write_all(rep, df=df, ctx=ctx, extras=extras, out_dir=out_dir, timing=dict(timing or {}))
-    return rep.write(out_dir, "report")
+from ._report_inputs import build_report as build_report  # noqa: E402 - re-exported (it was defined here)
+from ._report_inputs import read_results_csv  # noqa: E402

@@ -17,11 +17,12 @@ from ._benchmark import (
     a_fit_table,
     cost_table,
     ensemble_table,
+    mixed_terms_table,
     performance_table,
     status_table,
     tsep_failure_snr,
 )
-from ._appendix_f import appendix_f_section, protocol_frames
+from ._appendix_f import appendix_f_section
 from ._report_figures import forward_panels, phase_space
 
 __all__ = ["write_all"]
@@ -61,24 +62,25 @@ def _snr_text(s: float) -> str:
     return "∞" if math.isinf(s) else f"{s:g}"
 
 
-def write_all(rep, *, df, ctx, extras, out_dir: str, timing: Mapping[str, float]) -> None:
+def write_all(rep, *, df, run: Mapping[str, Any], extras, appendix_f, timing: Mapping[str, float]) -> None:
     fits = {how: a_fit_table(df, how) for how in ("mean", "rms")} if len(df) else {"mean": {}, "rms": {}}
     sections = [
-        ("What was run", lambda: _overview(rep, df, ctx, timing, out_dir)),
+        ("What was run", lambda: _overview(rep, df, run, timing)),
         ("Run status", lambda: _status(rep, df)),
         ("Table 1", lambda: _table1(rep, extras)),
         ("Table 2", lambda: _table2(rep, df, fits)),
+        ("SR mixed terms", lambda: _mixed(rep, df)),
         ("Table 3", lambda: _table3(rep, df, fits)),
         ("RMSE figures", lambda: _rmse_figures(rep, df, fits["mean"])),
         ("Separation time", lambda: _tsep(rep, df, extras)),
-        ("Forward integrations", lambda: forward_panels(rep, df, ctx)),
-        ("Phase space", lambda: phase_space(rep, df, ctx, extras)),
+        ("Forward integrations", lambda: forward_panels(rep, df, extras)),
+        ("Phase space", lambda: phase_space(rep, df, run, extras)),
         ("Performance", lambda: _performance(rep, df, fits["mean"])),
-        ("Appendix F", lambda: _appendix_f(rep, out_dir)),
+        ("Appendix F", lambda: _appendix_f(rep, appendix_f)),
         ("Appendix C", lambda: _sensitivity(rep, extras)),
         ("Appendix G", lambda: _cost(rep, df)),
     ]
-    if not len(df) and protocol_frames(out_dir):  # `benchmark --noise-on state`: Appendix F alone
+    if run.get("noise_on") == "state":  # `benchmark --noise-on state`: Appendix F alone
         sections = [sec for sec in sections if sec[0] in ("What was run", "Appendix F")]
     for name, build in sections:
         try:
@@ -92,10 +94,10 @@ def write_all(rep, *, df, ctx, extras, out_dir: str, timing: Mapping[str, float]
 
 
 # ---------------------------------------------------------------------- overview
-def _overview(rep, df, ctx, timing, out_dir) -> None:
+def _overview(rep, df, run, timing) -> None:
     rep.heading("What was run")
     if not len(df):
-        if protocol_frames(out_dir):
+        if run.get("noise_on") == "state":
             rep.paragraph("This folder holds the Appendix F study alone (`benchmark --noise-on state`): noise on x, "
                           "no main study (noise on the forcing).")
             if timing:
@@ -115,28 +117,37 @@ def _overview(rep, df, ctx, timing, out_dir) -> None:
             grid.append(f"{system}, preset `{preset}`: {g['method'].nunique()} methods x {len(levels)} SNR levels "
                         f"({shown} dB) x {g['realization'].nunique()} noise realisations = {len(g)} jobs")
     rep.bullets(grid)
-    if ctx is not None:
-        s = ctx.sizes
-        kind = "the paper's grid (`--full`)" if ctx.full else "the quick grid (the default)"
-        rep.paragraph(
-            f"This run used {kind}: {s['forward_cases']} validation cases per model (the paper: 10), MIW "
-            f"ensembles of {s['miw_seeds']} seeds and {s['miw_realizations']} realisations (the paper: 100 and 10), "
-            f"the Lyapunov exponent over {s['lyapunov_time']:g} time units, per-case simulation budget "
-            f"{s['case_time_budget']:g} s (a case over it counts as failed). Symbolic regression "
-            f"(SR, SR-CC, post-SR) uses Operon with one population of 300 and "
-            f"{s.get('sr_generations') or 40} generations (library default 40; the paper: PySR, 10 x 100, 200 "
-            "iterations). Appendix F uses "
-            f"{min(s['realizations'], s.get('appendix_f_realizations', s['realizations']))} realisation(s) per "
-            "level. With few SNR levels the A fits rest on few points: read them as "
-            "estimates, not as the paper's 61-level fits.")
+    if run.get("sizes"):
+        s, ran = run["sizes"], set(run.get("sections", ()))
+        kind = "the paper's grid (`--full`)" if run.get("full") else "the quick grid (the default)"
+        text = [f"The last invocation used {kind}: {s['forward_cases']} validation cases per model, drawn afresh "
+                "for each SNR level and shared by the methods (the paper: 10), "
+                f"per-case simulation budget {s['case_time_budget']:g} s (a case over it counts as failed)."]
+        if "miw" in ran:
+            text.append(f"MIW ensembles of {s['miw_seeds']} seeds and {s['miw_realizations']} realisations (the "
+                        "paper: 100 and 10).")
+        if "lyapunov" in ran:
+            text.append(f"The Lyapunov exponent over {s['lyapunov_time']:g} time units.")
+        text.append(f"Symbolic regression (SR, SR-CC, post-SR) uses Operon with one population of 300 and "
+                    f"{s.get('sr_generations') or 40} generations (library default 40; the paper: PySR, 10 x 100, "
+                    "200 iterations).")
+        if "appendix-f" in ran:
+            text.append(f"Appendix F uses {min(s['realizations'], s.get('appendix_f_realizations', s['realizations']))}"
+                        " realisation(s) per level.")
+        n_levels = df["snr_db"].nunique()
+        if n_levels < 61:
+            text.append(f"With {n_levels} SNR levels the A fits rest on few points: read them as estimates, not as "
+                        "the paper's 61-level fits.")
+        rep.paragraph(" ".join(text))
     if timing:
         rep.table(["stage", "wall time (s)"], [[k, float(v)] for k, v in timing.items()],
-                  caption="Wall time of this invocation's stages (a resumed run skips finished jobs).")
+                  caption="Wall time of the last invocation's stages (a resumed run skips finished jobs).")
     rep.paragraph("Ensembles over noise realisations use the authors' scripts' mean of per-run RMSEs (which "
                   "reproduces the paper's Tables 2 and 3); the paper's Eq. 19 (root mean square) is given beside "
-                  "it in Table 2. A is the slope-1 log-log fit RMSE = A η over the levels run. Files: "
-                  "`results.csv` (one row per job), `results.sqlite` (resumable store), `appendix_f.csv`, "
-                  "`extras.json`, `figures/`.")
+                  "it in Table 2. A is the slope-1 log-log fit RMSE = A η over the levels run. The report is built "
+                  "from `results.csv` (one row per job), `run.json` (what was run), `extras.json` (side studies "
+                  "and the simulated figures' data) and `appendix_f.csv` (when Appendix F ran): "
+                  "`charcurves benchmark --out DIR --report-only` rebuilds it from these files alone.")
 
 
 def _status(rep, df) -> None:
@@ -228,6 +239,26 @@ def _table2(rep, df, fits) -> None:
               caption="Slope-1 fits RMSE = A η of the ensemble (mean of per-run RMSEs; '(rms)': the paper's "
                       "Eq. 19); bias fits sqrt(b² + (A η)²). SR is fitted at η ≤ 8 as the paper. "
                       f"Paper: {paper.SOURCES['table2']}.")
+
+
+def _mixed(rep, df) -> None:
+    rep.heading("SR runs whose expression mixes x and x'", level=3)
+    rep.paragraph("SR searches one expression in x and x'. Its expanded terms in x alone form f2, those in x' "
+                  "alone f1, a pure number the free constant; a term in both (e.g. x·x') has no place in the "
+                  "separable template. Such terms are dropped and the coefficients of the remaining separable "
+                  "terms (with the constant) are refitted jointly by least squares on the equation; the curve "
+                  "RMSEs score these curves (fitting/_symbolic_fit.py). SR-CC never mixes (one search per curve).")
+    tab = mixed_terms_table(df) if len(df) else {}
+    if not tab:
+        rep.paragraph("This results.csv does not record the mixed terms (no SR rows, or written before the "
+                      "`mixed_terms` column existed).")
+        return
+    rows = []
+    for (system, preset, method), v in tab.items():
+        per = ", ".join(f"{_snr_text(s)} dB: {k}/{n}" for s, (k, n) in v["levels"].items() if k)
+        rows.append([system, preset, method, v["mixed"], v["runs"], per or "none"])
+    rep.table(["system", "preset", "method", "runs with mixed terms", "runs", "per level (mixed/runs)"], rows,
+              caption="From the `mixed_terms` column of results.csv (the number of mixed terms SR returned).")
 
 
 def _table3(rep, df, fits) -> None:
@@ -359,8 +390,8 @@ def _performance(rep, df, fits) -> None:
 
 
 # ---------------------------------------------------------------------- App. F
-def _appendix_f(rep, out_dir: str) -> None:
-    appendix_f_section(rep, out_dir, _fig)
+def _appendix_f(rep, frames) -> None:
+    appendix_f_section(rep, frames, _fig)
 
 
 # ---------------------------------------------------------------------- App. C
@@ -387,6 +418,30 @@ def _sensitivity(rep, extras) -> None:
                           "neurons per hidden layer). The paper's rows are its protocol (3x100 ReLU, Adam 1e-4, "
                           f"20 000 epochs) with that setting changed, so only the trends compare. "
                           f"Paper: {paper.SOURCES['sensitivity']}.")
+        same = _same_curves(extras.data[key]["value"])
+        if same:
+            rep.paragraph(f"{system}: every setting gives the same curves (RMSE f1 and f2 agree to {same:.0e} "
+                          "relative). This is a result, not a table error: the preset's Bayesian (evidence) "
+                          "regularisation switched the networks off on this record" + _eff_text(extras.data[key]["value"])
+                          + ", so the curves are the linear term and the learned jump, which no network setting "
+                          "changes.")
+
+
+def _same_curves(rows) -> float:
+    """The largest relative spread of RMSE f1/f2 over the settings when below 1e-6 (else 0)."""
+    ok = [r for r in rows if "error" not in r and r.get("rmse_f1") is not None and r.get("rmse_f2") is not None]
+    if len(ok) < 2:
+        return 0.0
+    spread = 0.0
+    for col in ("rmse_f1", "rmse_f2"):
+        v = np.array([float(r[col]) for r in ok])
+        spread = max(spread, float(np.ptp(v) / max(np.max(np.abs(v)), 1e-300)))
+    return max(spread, 1e-16) if spread < 1e-6 else 0.0
+
+
+def _eff_text(rows) -> str:
+    eff = sorted({round(float(r["effective_parameters"]), 1) for r in rows if r.get("effective_parameters") is not None})
+    return f" (effective parameters {', '.join(f'{e:g}' for e in eff)})" if eff else ""
 
 
 # ---------------------------------------------------------------------- App. G

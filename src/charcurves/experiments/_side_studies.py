@@ -117,7 +117,8 @@ def sensitivity(ctx: _Context, extras: _Extras) -> None:
                 err = curve_errors(model, truth)
                 rows.append({"setting": setting, "value": value, "loss": float(model.loss), "rmse_f1": err.get("f1"),
                              "rmse_f2": err.get("f2"), "seconds": time.perf_counter() - t0,
-                             "is_default": _is_base(base, setting, value)})
+                             "is_default": _is_base(base, setting, value),
+                             "effective_parameters": model.info.get("effective_parameters")})
             except Exception as exc:  # noqa: BLE001 - a diverging setting is a result, not a crash
                 rows.append({"setting": setting, "value": value, "error": f"{type(exc).__name__}: {exc}"[:300],
                              "seconds": time.perf_counter() - t0, "is_default": _is_base(base, setting, value)})

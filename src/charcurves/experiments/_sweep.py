@@ -68,8 +68,8 @@ def dataset_seed(purpose: str, system: str, variant: str, noise_on: str | None, 
                  realization: int, base_seed: int = 0, bits: int = 63) -> int:
     """A stable seed from a dataset's identity (blake2b of a canonical string).
 
-    ``purpose`` separates the streams ("noise", "fit", "validation"); no method enters, so every
-    method sees the same noise, the same initialisation seed and the same validation cases.
+    ``purpose`` separates the streams ("noise", "fit", "validation"); no method enters, so every method
+    sees the same noise, initialisation seed and validation cases (drawn afresh per SNR level, as the paper's).
 
     Examples
     --------
@@ -279,7 +279,7 @@ class Sweep:
                             noise_seed=dataset_seed("noise", system, variant, self.noise_on, snr, r, self.base_seed),
                             fit_seed=dataset_seed("fit", system, variant, self.noise_on, snr, r, self.base_seed,
                                                   bits=31),
-                            validation_seed=dataset_seed("validation", system, variant, None, None, r, self.base_seed,
+                            validation_seed=dataset_seed("validation", system, variant, None, snr, r, self.base_seed,
                                                          bits=31),
                             fit_kwargs=tuple(sorted(opts.items(), key=lambda kv: kv[0])),
                             preset_obj=preset_obj, noise_reference=self.noise_reference,
@@ -432,7 +432,8 @@ def run_sweep(sweep: Sweep, store_path: str | os.PathLike, *, executor: str = "l
     t0 = time.perf_counter()
     evaluation = None
     if forward_cases:
-        evaluation = {"cases": int(forward_cases), "eps": float(eps), "box_margin": box_margin}
+        evaluation = {"cases": int(forward_cases), "eps": float(eps), "box_margin": box_margin,
+                      "seeds": "per-level"}  # cases drawn per level: rows of older stores are other jobs
         if forward_rtol is not None or forward_atol is not None:
             evaluation.update(rtol=forward_rtol, atol=forward_atol)
     jobs = sweep.jobs(evaluation)

@@ -11,7 +11,8 @@ import numpy as np
 
 from . import _paper_values as paper
 
-__all__ = ["ensemble_table", "a_fit_table", "performance_table", "tsep_failure_snr", "cost_table", "status_table"]
+__all__ = ["ensemble_table", "a_fit_table", "performance_table", "tsep_failure_snr", "cost_table", "status_table",
+           "mixed_terms_table"]
 
 #: Stick-slip methods whose f-curves the paper fits with sqrt(bias² + (A η)²) (Table 3).
 BIAS_LIMITED = ("sindy-cc", "poly-cc")
@@ -54,7 +55,7 @@ def a_fit_table(df, how: str = "mean") -> dict[tuple, dict[str, Any]]:
     -------
     dict
         ``{key: {"A": {"f1", "f2", "x"}, "bias": {"f1": (b, A), ...}, "levels": int}}`` (NaN where
-        a term has no data).
+        a term has no data); ``levels``: the most levels any term's fit used (after the masks).
     """
     from ..metrics import fit_bias, fit_slope_one
 
@@ -77,7 +78,9 @@ def a_fit_table(df, how: str = "mean") -> dict[tuple, dict[str, Any]]:
                 continue
             A[t] = fit_slope_one(eta, ens, eta_max=eta_max)
             bias[t] = fit_bias(eta, ens, eta_max=eta_max)
-            nlev = max(nlev, int(np.sum(np.isfinite(ens) & (eta > 0))))
+            # the levels the fit used (SR: only those within its mask, e.g. 59 of the full grid's 61)
+            used = np.isfinite(ens) & (ens > 0) & (eta > 0) & (eta <= (np.inf if eta_max is None else eta_max))
+            nlev = max(nlev, int(np.sum(used)))
         out[key] = {"A": A, "bias": bias, "levels": nlev}
     return out
 
@@ -154,4 +157,30 @@ def status_table(df) -> dict[tuple, dict[str, int]]:
         out[key] = {"jobs": int(len(g)), "failed_jobs": int((g["status"] != "ok").sum()),
                     "cases": int(np.nansum(ok["n_cases"].astype(float))) if len(ok) else 0,
                     "failed_cases": int(np.nansum(ok["n_failed_cases"].astype(float))) if len(ok) else 0}
+    return out
+
+
+def mixed_terms_table(df) -> dict[tuple, dict[str, Any]]:
+    """Per (system, preset, method) whose rows record SR's mixed terms (``mixed_terms`` not NaN):
+    ``{"runs": ok runs, "mixed": runs with a term mixing the curves' arguments, "levels": {snr: (mixed, runs)}}``.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> df = pd.DataFrame({"system": "duffing", "preset": "default", "method": "sr", "status": "ok",
+    ...                    "snr_db": [20.0, 20.0, 0.0], "mixed_terms": [0.0, 2.0, 1.0]})
+    >>> t = mixed_terms_table(df)[("duffing", "default", "sr")]
+    >>> t["runs"], t["mixed"], t["levels"][0.0], t["levels"][20.0]
+    (3, 2, (1, 1), (1, 2))
+    """
+    out: dict[tuple, dict[str, Any]] = {}
+    if "mixed_terms" not in df.columns:
+        return out
+    ok = _ok(df)
+    ok = ok[ok["mixed_terms"].notna()]
+    for key, g in ok.groupby(["system", "preset", "method"], sort=False):
+        levels = {float(s): (int((h["mixed_terms"] > 0).sum()), int(len(h)))
+                  for s, h in g.groupby("snr_db", sort=False)}
+        out[key] = {"runs": int(len(g)), "mixed": int((g["mixed_terms"] > 0).sum()),
+                    "levels": dict(sorted(levels.items(), reverse=True))}
     return out

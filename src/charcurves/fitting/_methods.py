@@ -2,7 +2,8 @@
 
 ``method="nn-cc+sym"`` (and the CLI's ``--method``) is a shorthand for composing objects: it
 builds ``Neural(symmetry="odd")`` for every curve of the template, ``"poly-cc"`` a ``Polynomial``,
-``"sindy-cc+sym"`` an odd ``SparseLibrary``, ``"sr-cc"`` a ``Symbolic`` curve, ``"parametric"`` a
+``"sindy-cc+sym"`` an odd ``SparseLibrary``, ``"sr-cc"`` a ``Symbolic`` curve (``"sr-cc+refit"``:
+``Symbolic(refit=True)``), ``"parametric"`` a
 ``Basis`` per curve; ``+post-sr`` distils the fitted curves into closed forms afterwards.
 """
 
@@ -20,7 +21,8 @@ __all__ = ["METHODS", "parse_symmetry", "parse_basis_option", "DEFAULT_BASIS", "
 
 #: The paper's twelve methods as named presets of shared parts: a curve representation, whether a
 #: symmetry prior applies (odd curves unless told otherwise) and whether the learned curves are
-#: distilled into closed forms afterwards (post-SR).
+#: distilled into closed forms afterwards (post-SR); and ``sr-cc+refit``, SR-CC with a joint
+#: least-squares refit of the coefficients of the structure SR found (``Symbolic(refit=True)``).
 METHODS: dict[str, dict[str, Any]] = {
     "nn-cc": {"representation": "neural", "symmetry": False, "post_sr": False},
     "nn-cc+post-sr": {"representation": "neural", "symmetry": False, "post_sr": True},
@@ -33,6 +35,8 @@ METHODS: dict[str, dict[str, Any]] = {
     "sindy-cc+sym+post-sr": {"representation": "sindy", "symmetry": True, "post_sr": True},
     "sr": {"representation": "sr", "symmetry": False, "post_sr": False},
     "sr-cc": {"representation": "sr-cc", "symmetry": False, "post_sr": False},
+    # not one of the paper's twelve: SR-CC whose found structure is refitted jointly by least squares
+    "sr-cc+refit": {"representation": "sr-cc", "symmetry": False, "post_sr": False, "refit": True},
     "parametric": {"representation": "basis", "symmetry": False, "post_sr": False},
 }
 
@@ -167,7 +171,7 @@ def method_curve(method: str, name: str, *, symmetry: str, jump, options: dict, 
         curve.check()
         return curve
     if rep in ("sr", "sr-cc"):
-        return Symbolic(joint=rep == "sr")
+        return Symbolic(joint=rep == "sr", refit=bool(spec.get("refit", False)))
     return Basis(list((basis or {})[name]))
 
 

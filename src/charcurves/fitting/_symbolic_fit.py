@@ -19,7 +19,14 @@ authors' scripts count it as "crossed": ``info["decomposable_scripts"]`` gives t
 
 Free gain: the search runs on ``g0 F - x''`` with ``g0`` from a least-squares fit of a generic
 separable basis (powers of the arguments up to 5, a step in velocity arguments, a constant);
-afterwards all outer coefficients and g are refitted jointly by least squares.
+afterwards (SR, and SR-CC with ``Symbolic(refit=True)``) all outer coefficients and g are refitted
+jointly by least squares; plain SR-CC (the paper's) keeps g0 and the coefficients its searches found.
+
+Coefficients: SR-CC as the paper runs it (``"sr-cc"``, ``Symbolic()``) keeps the coefficients each
+univariate search found (Operon optimises them inside its search); ``"sr-cc+refit"``
+(``Symbolic(refit=True)``) keeps the structure and refits the outer coefficients of all curves
+jointly by least squares, which on the separable Duffing makes it Parametric whenever SR finds the
+true basis. SR refits the separable terms only when it dropped mixed terms (or the gain is free).
 """
 
 from __future__ import annotations
@@ -195,11 +202,16 @@ def fit_symbolic(record, template: EquationTemplate, reps: dict, *, method: str,
     if len(joint) != 1:
         raise ConfigError("mix of joint and per-curve Symbolic curves; use Symbolic(joint=True) for every curve (SR) "
                           "or for none (SR-CC)")
+    refit = {bool(getattr(r, "refit", False)) for r in reps.values()}
+    if len(refit) != 1:
+        raise ConfigError("mix of Symbolic(refit=True) and Symbolic(refit=False); the refit is joint over every "
+                          "curve: give every curve the same refit")
     D = template.design(record)
     _check_template(template, D, "symbolic regression (sr, sr-cc)")
     if joint.pop():
         return _fit_sr(template, record, D, mask, method, dict(options or {}), sr_options, random_state, t0)
-    return _fit_sr_cc(template, record, D, mask, method, dict(options or {}), sr_options, random_state, t0)
+    return _fit_sr_cc(template, record, D, mask, method, dict(options or {}), sr_options, random_state, t0,
+                      refit=refit.pop())
 
 
 def _fit_sr(template, record, D, mask, method, options, sr_options, random_state, t0):
@@ -242,7 +254,7 @@ def _fit_sr(template, record, D, mask, method, options, sr_options, random_state
     return _build(template, record, D, mask, parts_z, constant, gain, method, info, meta, g0=g0, t0=t0)
 
 
-def _fit_sr_cc(template, record, D, mask, method, options, sr_options, random_state, t0):
+def _fit_sr_cc(template, record, D, mask, method, options, sr_options, random_state, t0, *, refit: bool = False):
     import sympy as sp
 
     from ..symbolic import operators_option
@@ -295,13 +307,16 @@ def _fit_sr_cc(template, record, D, mask, method, options, sr_options, random_st
         c0 = sum((float(t) for t in sp.Add.make_args(sp.expand(e)) if not t.free_symbols), 0.0)
         constant += c0
         parts_z[name] = sp.expand(e) - c0
-    parts_z, constant, gain = _refit(template, D, mask, parts_z, g0)
+    gain = g0
+    if refit:  # sr-cc+refit: the structure SR found, its outer coefficients refitted jointly
+        parts_z, constant, gain = _refit(template, D, mask, parts_z, g0)
     info = {
         "expression": " + ".join(f"{n}({template.arguments[n]}) = {parts_z[n]}" for n in template.curve_names),
         "decomposable": True,
         "mixed_terms": [],
         "constant": float(constant),
         "decomposable_scripts": True,
+        "refit": bool(refit),
         "iterations": it,
         "outer_iterations": n_outer,
         "inner_generations": inner,
@@ -326,7 +341,8 @@ def _functional(joint: bool):
         stick_tol = options.pop("stick_tol", "default")
         template.check_excitation(traj)
         mask = sticking_masks([traj], template, [False], exclude=True, kind="symbolic", stick_tol=stick_tol)[0]
-        reps = {n: Symbolic(joint=joint) for n in template.curve_names}
+        # SR-CC's coefficient refit is the method "sr-cc+refit" (Symbolic(refit=True))
+        reps = {n: Symbolic(joint=joint, refit=not joint and method == "sr-cc+refit") for n in template.curve_names}
         return fit_symbolic(traj, template, reps, method=method or ("sr" if joint else "sr-cc"), mask=mask,
                             options=options, sr_options=sr_options, random_state=random_state)
 
@@ -356,8 +372,12 @@ Examples
 >>> from charcurves.fitting import fit_sr_cc
 >>> from charcurves.systems import get_system
 >>> from charcurves.templates import get_template
->>> short = {"outer_iterations": 1, "inner_generations": 3}  # a short search
->>> model = fit_sr_cc(get_system("duffing").simulate(), get_template(), options=short, sr_options={"generations": 3})
+>>> short = {"outer_iterations": 1, "inner_generations": 3}  # a short search: its coefficients are rough
+>>> record = get_system("duffing").simulate()
+>>> model = fit_sr_cc(record, get_template(), options=short, sr_options={"generations": 3})
 >>> model.method, model.to_sympy(curves=True, digits=3)
-('sr-cc', {'f1': 0.3*z, 'f2': z**3 - z})
+('sr-cc', {'f1': 0.3*z, 'f2': 1.01*z**3 - 1.01*z})
+>>> refit = fit_sr_cc(record, get_template(), options=short, sr_options={"generations": 3}, method="sr-cc+refit")
+>>> refit.to_sympy(curves=True, digits=3)  # the same structure, its coefficients refitted jointly
+{'f1': 0.3*z, 'f2': z**3 - z}
 """

@@ -1,0 +1,166 @@
+"""What the benchmark report is built from: small files in the output folder, nothing else.
+
+A benchmark run writes, besides its resumable stores (``results.sqlite``, ``appendix_f.sqlite``,
+``models/``, large and not meant to be committed):
+
+* ``results.csv``: one row per job of the main sweep (every table and figure of the noise sweep);
+* ``appendix_f.csv`` and ``appendix_f_default.csv``: the same for Appendix F (noise on x; the paper's
+  protocol and charcurves' default), when that section ran;
+* ``extras.json``: the side studies (Lyapunov time, Table 1's MIW, Appendix C) and the data of the
+  figures that simulate (forward panels of Fig. 6, validation trajectories of Fig. 7);
+* ``run.json``: what the last invocation ran (grid sizes, systems and their variants, the sections
+  run, the stage times shown in the report).
+
+:func:`build_report` reads only these, so ``charcurves benchmark --report-only`` rebuilds
+``report.md``, ``report.html`` and ``figures/`` from a committed folder without running a job;
+a missing file is a :class:`ConfigError` naming it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from .._errors import ConfigError
+
+__all__ = ["RUN_FILE", "COMMITTED_FILES", "write_run_file", "read_results_csv", "load_report_inputs", "build_report"]
+
+RUN_FILE = "run.json"
+#: The files a report is rebuilt from (commit these with the report; appendix_f.csv when Appendix F ran).
+COMMITTED_FILES = ("results.csv", "appendix_f.csv", "appendix_f_default.csv", "extras.json", RUN_FILE)
+_WHAT = {
+    "results.csv": "one row per job of the main sweep",
+    "appendix_f.csv": "the Appendix F jobs, which run.json says were run",
+    "extras.json": "the side studies and the data of the simulated figures",
+    RUN_FILE: "the grid and sections of the run",
+}
+
+
+def write_run_file(out_dir: str, run: Mapping[str, Any]) -> str:
+    """Write ``run.json`` (atomically) and return its path."""
+    from ..io._csv import atomic_write_bytes
+    from ._store import _jsonable
+
+    path = os.path.join(out_dir, RUN_FILE)
+    atomic_write_bytes(path, json.dumps(_jsonable(dict(run)), indent=1, sort_keys=True).encode("utf-8"))
+    return path
+
+
+def read_results_csv(path: str | os.PathLike):
+    """``results.csv`` (or ``appendix_f.csv``) as the DataFrame the report's tables take.
+
+    Examples
+    --------
+    >>> import pandas as pd, tempfile, os
+    >>> d = tempfile.mkdtemp(); p = os.path.join(d, "results.csv")
+    >>> pd.DataFrame({"system": ["duffing"], "method": ["sr"], "snr_db": [float("inf")], "realization": [0],
+    ...               "rmse_f1": [1e-3], "rmse_f2": [2e-3], "status": ["ok"]}).to_csv(p, index=False)
+    >>> df = read_results_csv(p)
+    >>> float(df["snr_db"][0]), df["preset"][0], float(df["eta"][0])
+    (inf, 'default', 0.0)
+    """
+    import math
+
+    import pandas as pd
+
+    from ._benchmark import RESULT_COLUMNS
+
+    df = pd.read_csv(path)
+    for c in RESULT_COLUMNS:
+        if c not in df.columns:  # files of older releases lack the newer columns
+            df[c] = {"preset": "default", "variant": "paper", "noise_on": "force"}.get(c, float("nan"))
+    for c in ("snr_db", "eta", "rmse_f1", "rmse_f2", "rmse_x", "t_sep", "seconds", "fit_seconds", "gain", "loss",
+              "n_cases", "n_failed_cases", "n_censored", "mixed_terms"):
+        df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
+    if df["eta"].isna().any():
+        df["eta"] = [0.0 if math.isinf(s) else 10.0 ** (-s / 20.0) for s in df["snr_db"]]
+    df["realization"] = df["realization"].astype(int)
+    for c in ("system", "method", "status", "preset", "variant", "noise_on"):
+        df[c] = df[c].astype(str)
+    df["error"] = df["error"].where(df["error"].notna(), None)
+    return df[list(RESULT_COLUMNS)]
+
+
+def _need(out_dir: str, name: str) -> str:
+    path = os.path.join(out_dir, name)
+    if not os.path.isfile(path):
+        raise ConfigError(f"cannot rebuild the report: {path} is missing ({_WHAT[name]}); restore the file, or run "
+                          "`charcurves benchmark` into this folder to write it")
+    return path
+
+
+def load_report_inputs(out_dir: str | os.PathLike) -> tuple[Any, dict, Any, Any]:
+    """``(results frame, run dict, extras, {Appendix F protocol: frame})`` from ``out_dir``'s files.
+
+    Raises
+    ------
+    ConfigError
+        When ``out_dir`` is not a folder, or lacks ``results.csv``, ``run.json``, ``extras.json``
+        or (when run.json says Appendix F ran) ``appendix_f.csv``; the message names the file.
+    """
+    import pandas as pd
+
+    from ._appendix_f import protocol_frames
+    from ._benchmark import _Extras
+
+    out_dir = os.fspath(out_dir)
+    if not os.path.isdir(out_dir):
+        raise ConfigError(f"cannot rebuild the report: {out_dir!r} is not a folder; give the --out of a benchmark run")
+    try:
+        with open(_need(out_dir, RUN_FILE), encoding="utf-8") as fh:
+            run = json.load(fh)
+    except ValueError as exc:
+        raise ConfigError(f"cannot rebuild the report: {os.path.join(out_dir, RUN_FILE)} is not valid JSON ({exc}); "
+                          "restore the file or rerun the benchmark") from None
+    if run.get("noise_on") == "state":  # Appendix F alone: no main sweep, no results.csv
+        from ._benchmark import RESULT_COLUMNS
+
+        df = pd.DataFrame(columns=list(RESULT_COLUMNS))
+    else:
+        df = read_results_csv(_need(out_dir, "results.csv"))
+    extras = _Extras(_need(out_dir, "extras.json"))
+    af = protocol_frames(out_dir, required_for=run.get("preset", "default") if "appendix-f" in run.get("sections", ())
+                         else None)
+    return df, run, extras, af
+
+
+def build_report(out_dir: str | os.PathLike, *, timing: Mapping[str, float] | None = None) -> tuple[str, str]:
+    """Write ``report.md``, ``report.html`` and ``figures/`` from ``out_dir``'s files alone.
+
+    Reads ``results.csv``, ``run.json``, ``extras.json`` and ``appendix_f.csv`` (when Appendix F
+    ran); runs no job and no simulation. ``timing``: stage times to show instead of run.json's.
+    Returns the two paths.
+
+    Examples
+    --------
+    ``build_report("bench")`` rewrites bench/report.md and bench/report.html. A folder without the
+    files is refused, naming the first one missing:
+
+    >>> import tempfile
+    >>> from charcurves.experiments import build_report
+    >>> try:
+    ...     build_report(tempfile.mkdtemp())
+    ... except Exception as exc:
+    ...     print(type(exc).__name__, str(exc).split(" is missing")[0].endswith("run.json"))
+    ConfigError True
+    """
+    from ..report._html import Report
+    from . import _report_sections as sections
+
+    out_dir = os.fspath(out_dir)
+    df, run, extras, af = load_report_inputs(out_dir)
+    rep = Report("charcurves benchmark: the paper's study")
+    sections.write_all(rep, df=df, run=run, extras=extras, appendix_f=af,
+                       timing=dict(timing if timing is not None else run.get("timing", {})))
+    return rep.write(out_dir, "report")
+
+
+def run_record(*, systems: Sequence[str], methods: Sequence[str], preset: str, full: bool, sizes: Mapping,
+               variants: Mapping[str, str], skip: Sequence[str], sections: Sequence[str], timing: Mapping,
+               t_end: float, n_points: int, base_seed: int, noise_on: str = "force") -> dict[str, Any]:
+    """The content of ``run.json``."""
+    return {"noise_on": noise_on, "systems": list(systems), "methods": list(methods), "preset": preset, "full": bool(full),
+            "sizes": dict(sizes), "variants": dict(variants), "skip": list(skip), "sections": list(sections),
+            "timing": dict(timing), "t_end": float(t_end), "n_points": int(n_points), "base_seed": int(base_seed)}
