@@ -328,8 +328,8 @@ class Basis(LinearCurve):
         import torch
 
         powers = self.monomial_powers()
-        if powers is not None:
-            return torch.stack([u**k if k > 1 else (u if k == 1 else torch.ones_like(u)) for k in powers], dim=-1)
+        if powers is not None:  # every power in one operation
+            return u.unsqueeze(-1).pow(torch.tensor(powers, dtype=u.dtype, device=u.device))
         funcs = self._compiled()[1]
         return torch.stack([torch.broadcast_to(torch.as_tensor(f(u), dtype=u.dtype), u.shape) for f in funcs], dim=-1)
 
@@ -337,9 +337,9 @@ class Basis(LinearCurve):
         import torch
 
         powers = self.monomial_powers()
-        if powers is not None:
-            return torch.stack([k * u ** (k - 1) if k > 2 else (2 * u if k == 2 else torch.full_like(u, float(k)))
-                                for k in powers], dim=-1)
+        if powers is not None:  # k z^(k-1), 0 for the constant (whose power is clamped to 0: no 0 * inf at z = 0)
+            k = torch.tensor(powers, dtype=u.dtype, device=u.device)
+            return k * u.unsqueeze(-1).pow((k - 1).clamp_min(0))
         derivs = self._compiled()[2]
         return torch.stack([torch.broadcast_to(torch.as_tensor(d(u), dtype=u.dtype), u.shape) for d in derivs], dim=-1)
 
