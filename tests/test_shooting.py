@@ -98,3 +98,88 @@ def test_a_start_whose_free_run_diverges_keeps_the_equation_error_model(measured
                                       preset=get_preset("default"))
     assert out is start and out.info["output_error"]["status"].startswith("failed: the free run")
     assert out.info["objective"] == "equation-error (output error failed)"
+
+
+@pytest.mark.parametrize("basis, folds", [(["1", "z", "z**3"], 0), (["z**3", "1"], 1), (["z", "z**3"], None)])
+@pytest.mark.parametrize("center, half", [(0.0, 1.0), (0.3, 2.0)])
+def test_free_run_curve_values_carry_the_shift_in_the_constant_coefficient(basis, folds, center, half):
+    """The free run's per-stage curve values (CurveBlock.evaluator) equal shift + out * param((u - c) / h);
+    a polynomial with a constant monomial and no output scale carries the shift in that coefficient."""
+    from charcurves.curves import Basis, LinearParametrisation
+    from charcurves.fitting._shooting import CurveBlock, _constant_column
+
+    param = LinearParametrisation(Basis(basis))
+    col = lambda v: torch.full((2, 1), v, dtype=torch.float64)  # noqa: E731
+    theta = torch.tensor([[0.5, -1.0, 2.0][:len(basis)], [1.5, 0.25, -0.75][:len(basis)]], dtype=torch.float64)
+    u = torch.linspace(-2, 2, 7, dtype=torch.float64).expand(2, 7)
+    assert _constant_column(param) == folds
+    for out, shift in ((1.0, 0.037), (1.0, 0.0), (3.0, 0.037)):
+        blk = CurveBlock("f", param, col(center), col(half), col(out), col(shift))
+        expected = shift + out * param.evaluate(theta, (u - center) / half)
+        got = blk.evaluator(theta)(u)
+        assert torch.allclose(got, expected, rtol=0, atol=1e-14), (out, shift)
+        assert torch.equal(theta, torch.tensor([[0.5, -1.0, 2.0][:len(basis)], [1.5, 0.25, -0.75][:len(basis)]],
+                                               dtype=torch.float64))  # the caller's parameters untouched
+
+
+class _Quantised:
+    """Least squares ``A theta - b`` with residuals rounded to 1e-6: near the optimum a step changes the
+    loss by rounding only, and the trial is refused (counts every trial the trainer makes)."""
+
+    def __init__(self):
+        from charcurves.fitting._problem import LeastSquaresProblem
+
+        g = torch.Generator().manual_seed(0)
+        self.A = torch.randn(50, 4, generator=g, dtype=torch.float64)
+        self.b = torch.randn(50, generator=g, dtype=torch.float64)
+        self.problem = type("Q", (LeastSquaresProblem,), {
+            "residuals": lambda s, th: torch.round((th @ self.A.T - self.b) * 1e6) / 1e6,
+            "residuals_jacobian": lambda s, th: (s.residuals(th), self.A.expand(th.shape[0], *self.A.shape)),
+            "loss": lambda s, th: self._record(s.residuals(th).pow(2).sum(1)),
+        })()
+        p = self.problem
+        p.y, p.n_data, p.n_params = self.b.new_zeros(1, 50), 50, 4
+        p.n_used = torch.full((1,), 50.0, dtype=torch.float64)
+        p.decay_index, p.decay_group, p.weight_decay = None, None, 0.0
+        self.costs: list = []
+
+    def _record(self, c):
+        self.costs.append(float(c[0]))
+        return c
+
+
+def test_output_error_training_stops_at_the_first_step_refused_by_rounding():
+    """With a stop window (output error), a step the linear model says cannot gain more than the
+    tolerance, refused because its loss changed by rounding only, ends the member at once: one such
+    trial, where filling the window took three more free runs (each trial is one free run in output
+    error); the parameters are those of the last accepted step."""
+    from charcurves.fitting._train import train
+
+    q = _Quantised()
+    theta, log = train(q.problem, torch.zeros(1, 4, dtype=torch.float64), adam_steps=0, adam_lr=0.0, lm_max_iter=50,
+                       lm_tol=1e-6, stop_loss=0.0, lm_window=4)
+    assert log.stopped_by == "stall" and log.lm_iterations == 3 and len(q.costs) == 3, q.costs
+    assert q.costs[2] > q.costs[1]  # the last trial was refused...
+    assert float(q.problem.loss(theta)[0]) == q.costs[1]  # ...and the accepted point is kept
+    exact = torch.linalg.lstsq(q.A, q.b).solution
+    assert float((theta[0] - exact).abs().max()) < 1e-5
+
+
+@pytest.mark.parametrize("basis", [["1", "z", "z**2", "z**3", "z**10"], ["z", "z**3", "z**5"], ["1"], ["z**2", "1"]])
+def test_monomial_basis_features_and_derivatives_from_one_power_table(basis):
+    """Plain monomials (the bases output error gives polynomials and libraries) take all their powers
+    from one cumulative product: the columns z^k and k z^(k-1) in the basis' order, finite at z = 0
+    (the constant's derivative is 0, not 0 * z^-1)."""
+    from charcurves.curves import Basis
+
+    b = Basis(basis)
+    powers = b.monomial_powers()
+    assert powers == tuple(0 if f == "1" else (1 if f == "z" else int(f[3:])) for f in basis)
+    u = torch.tensor([[-1.5, -0.2, 0.0, 0.7, 2.0]], dtype=torch.float64)
+    phi, dphi = b.features(u), b.feature_derivatives(u)
+    assert phi.shape == dphi.shape == (1, 5, len(basis))
+    expected = torch.stack([u**k for k in powers], dim=-1)
+    d_expected = torch.stack([k * u ** max(k - 1, 0) for k in powers], dim=-1)
+    assert torch.allclose(phi, expected, rtol=1e-14, atol=0) and torch.allclose(dphi, d_expected, rtol=1e-14, atol=0)
+    assert bool(torch.isfinite(dphi).all())
+    assert [float(d) for d in dphi[0, 2]] == [1.0 if k == 1 else 0.0 for k in powers]  # at z = 0

@@ -329,7 +329,7 @@ class Basis(LinearCurve):
 
         powers = self.monomial_powers()
         if powers is not None:
-            return torch.stack([u**k if k > 1 else (u if k == 1 else torch.ones_like(u)) for k in powers], dim=-1)
+            return _power_table(u, max(powers)).index_select(-1, torch.tensor(powers, device=u.device))
         funcs = self._compiled()[1]
         return torch.stack([torch.broadcast_to(torch.as_tensor(f(u), dtype=u.dtype), u.shape) for f in funcs], dim=-1)
 
@@ -337,9 +337,10 @@ class Basis(LinearCurve):
         import torch
 
         powers = self.monomial_powers()
-        if powers is not None:
-            return torch.stack([k * u ** (k - 1) if k > 2 else (2 * u if k == 2 else torch.full_like(u, float(k)))
-                                for k in powers], dim=-1)
+        if powers is not None:  # k z^(k-1); the constant's 0 times z^0 (no 0 * inf at z = 0)
+            k = torch.tensor(powers, device=u.device)
+            table = _power_table(u, max(max(powers) - 1, 0))
+            return k.to(u.dtype) * table.index_select(-1, (k - 1).clamp_min(0))
         derivs = self._compiled()[2]
         return torch.stack([torch.broadcast_to(torch.as_tensor(d(u), dtype=u.dtype), u.shape) for d in derivs], dim=-1)
 
@@ -446,3 +447,14 @@ def _derivative(expr, z):
         raise ConfigError(f"cannot differentiate the basis function {expr}; write it with functions sympy can "
                           "differentiate (sign, abs, tanh, exp, powers ...)")
     return d.subs(zr, z)
+
+
+def _power_table(u, kmax: int):
+    """``u**0 ... u**kmax`` along a new last axis, by repeated multiplication (one cumulative product:
+    cheaper than a power per column or a tensor-exponent power on the long arrays of a fit)."""
+    import torch
+
+    ones = torch.ones_like(u).unsqueeze(-1)
+    if kmax <= 0:
+        return ones
+    return torch.cat([ones, u.unsqueeze(-1).expand(*u.shape, kmax).cumprod(-1)], dim=-1)

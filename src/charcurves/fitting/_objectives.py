@@ -94,7 +94,8 @@ class OutputError(_Objective):
         get Nielsen's damping rule (docs/measured-records.md).
     tol : float
         A member stops when the relative decrease of its loss summed over its last 4 iterations is
-        below this.
+        below this, or at once when a step is refused because its loss changed by less than this
+        (relative) and the linear model predicts no larger decrease.
     max_segments : int
         Longer records use this many segments spread over the record (the rest is not simulated).
     time_budget : float

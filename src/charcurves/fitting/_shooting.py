@@ -21,7 +21,7 @@ import math
 import torch
 
 from ._problem import LeastSquaresProblem
-from ._shooting_ode import ShootingODE
+from ._shooting_ode import ShootingODE, curve_evaluator
 
 __all__ = ["ShootingProblem", "CurveBlock"]
 
@@ -44,6 +44,27 @@ class CurveBlock:
         self._scaled_out = not bool((out == 1).all())
         self._shifted = not bool((shift == 0).all())
 
+    def evaluator(self, theta):
+        """``u -> shift + out * param((u - center) / half)`` at fixed parameters ``theta`` (``(B, n)``,
+        this curve's columns): the free run's per-stage values. A curve without an output scale
+        whose basis has a constant monomial (a polynomial) carries its shift in that coefficient,
+        which saves one tensor operation per RK4 stage."""
+        k = _constant_column(self.param) if self._shifted and not self._scaled_out else None
+        if k is None:
+            ev = curve_evaluator(self.param, theta)
+            return lambda u: self.value(ev, u)
+        theta = theta.clone()
+        theta[:, k] += self.shift[:, 0]
+        ev = curve_evaluator(self.param, theta)
+        centred, scaled = self._centred, self._scaled_in
+        center, half = self.center, self.half
+
+        def f(u):
+            z = u - center if centred else u
+            return ev(z / half if scaled else z)
+
+        return f
+
     def value(self, evaluate, u):
         """``shift + out * evaluate((u - center) / half)`` (``evaluate``: the parametrisation at
         fixed parameters, :func:`~._shooting_ode.curve_evaluator`)."""
@@ -54,6 +75,14 @@ class CurveBlock:
         elif self._shifted:
             f = f + self.shift
         return f
+
+
+def _constant_column(param) -> int | None:
+    """The column of a parametrisation whose basis function is the constant monomial, or None
+    (networks, bases without a constant, other than plain monomials)."""
+    powers_of = getattr(getattr(param, "curve", None), "monomial_powers", None)
+    powers = powers_of() if callable(powers_of) else None
+    return list(powers).index(0) if powers is not None and 0 in powers else None
 
 
 class ShootingProblem(ShootingODE, LeastSquaresProblem):

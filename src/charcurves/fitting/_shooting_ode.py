@@ -114,7 +114,7 @@ class ShootingODE:
         fns = []
         for bi, blk, sig, direct in curves:
             o = self.block_offsets[bi]
-            fns.append((blk.name, curve_evaluator(blk.param, theta[:, o:o + blk.n_params]), blk, sig, direct))
+            fns.append((blk.name, blk.evaluator(theta[:, o:o + blk.n_params]), sig, direct))
         g = theta[:, self.gain_index:self.gain_index + 1] if self.free_gain else self.gain
         sc = {s: theta[:, j:j + 1] for s, j in self.scalar_index.items()}
         off = {e: theta[:, j:j + 1] for e, j in self.offset_index.items()}
@@ -129,8 +129,8 @@ class ShootingODE:
             vals = dict(stage)
             vals.update(zip(self.forward.layout, ys))
         cv = {}
-        for name, ev, blk, sig, direct in fns:
-            cv[name] = blk.value(ev, ys[direct] if direct is not None else sig.value(vals, like))
+        for name, ev, sig, direct in fns:
+            cv[name] = ev(ys[direct] if direct is not None else sig.value(vals, like))
         # each equation as known + curves + ... = g u: the top derivatives solve A top = g u - (the rest)
         rhs = []
         for e, k0c, k0, force, inp, mult, scalars in eqs:
@@ -147,7 +147,8 @@ class ShootingODE:
             k0v = k0c if k0c is not None else k0.value(vals, like)
             if not (isinstance(k0v, float) and k0v == 0.0):
                 r = _plus(r, k0v)
-            gu = g * (stage[force] if force is not None else inp.value(vals, like))
+            u_in = stage[force] if force is not None else inp.value(vals, like)
+            gu = u_in if isinstance(g, float) and g == 1.0 else g * u_in  # a fixed unit gain: no product
             rhs.append(gu if r is None else gu - r)
         if self.forward.divides:
             c: Any = self.forward.A[0][0]

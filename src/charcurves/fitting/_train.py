@@ -267,7 +267,10 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
             problem.set_weight_decay(torch.where(moved, lam_new, lam_old))
             JtJ, g, cost = _with_decay(problem, theta, normal)
             log.effective_parameters = gamma.tolist()
-        finished = (recent.sum(dim=1) < tol) if window else (stalls >= 3)
+        # with a window (output error), a refused step that the linear model says cannot gain more than
+        # tol (MINPACK's ftol test) ends the model at once: theta stays as it is, and the further
+        # refusals under a growing damping that used to fill the window cost one free run each
+        finished = ((recent.sum(dim=1) < tol) | settled) if window else (stalls >= 3)
         finished = finished | (mu >= 1e12) | (cost < stop_loss)
         active = active & ~finished
         log.lm_iterations = it + 1
@@ -301,7 +304,8 @@ def train(
     predicts less and the trial's loss differs by less). With ``lm_window`` > 0 (output error) it
     stops a model once its relative decrease summed over its last ``lm_window`` iterations is below
     ``lm_tol`` (rejected steps whose trial changed the loss by less than that count as no decrease:
-    at convergence the trials differ by rounding). ``lm_nielsen`` sets the damping by Nielsen's
+    at convergence the trials differ by rounding), or at once when a step is refused by rounding
+    alone (above: the linear model predicts less than ``lm_tol``). ``lm_nielsen`` sets the damping by Nielsen's
     gain-ratio rule instead of the fixed factors 1/3 and 4. ``lm_deadline`` (a ``time.monotonic()``
     value) ends training at the first iteration after that time. ``keep_decay``: LM continues from
     the problem's weight decay (the refinement of a long record) instead of the evidence's start.
