@@ -448,7 +448,8 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
     from ._report_figures import figure_data
     from ._report_inputs import run_record, write_run_file
 
-    figure_data(df, {s: sweep.variant_of(s) for s in systems}, extras)
+    if noise_on == "force":  # the simulated figures (Figs. 6, 7) belong to the main study
+        figure_data(df, {s: sweep.variant_of(s) for s in systems}, extras)
     extras.save()
     ran = [name for name in ("lyapunov", "miw", "sensitivity", "appendix-f") if name in timing]
     write_run_file(out_dir, run_record(systems=systems, methods=methods, preset=preset, full=full, sizes=sizes,
