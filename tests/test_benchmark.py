@@ -300,3 +300,21 @@ def test_noise_on_must_name_force_or_state(tmp_path):
     with pytest.raises(ConfigError, match="noise_on must be 'force' .* or 'state' .*got 'x'"):
         run_benchmark(tmp_path / "b", methods=["parametric"], noise_on="x")
     assert not (tmp_path / "b").exists()
+
+
+def test_variant_scripts_runs_the_scripts_systems_and_says_so(tmp_path):
+    out = tmp_path / "scripts"
+    assert main(["benchmark", "--variant", "scripts", "--systems", "duffing", "--methods", "parametric", "--snr", "30",
+                 "--realizations", "1", "--skip", "forward,lyapunov,miw,sensitivity,appendix-f", "--workers", "1",
+                 "--quiet", "--out", str(out)]) == 0
+    row = pd.read_csv(out / "results.csv").iloc[0]
+    assert row["variant"] == "scripts"
+    # scored against the scripts' curves (alpha -1.05, beta 1.02): the paper's differ from them by 2.2e-2 rms
+    assert row["rmse_f2"] < 5e-3 and row["rmse_f1"] < 5e-3
+    md = (out / "report.md").read_text(encoding="utf-8")
+    assert "duffing (parameters: `scripts` variant), preset `default`: 1 methods x 1 SNR levels" in md
+    from charcurves._errors import ConfigError
+    from charcurves.experiments import run_benchmark
+
+    with pytest.raises(ConfigError, match="variant must be 'paper' .* or 'scripts' .*got 'smooth'"):
+        run_benchmark(tmp_path / "b", methods=["parametric"], variant="smooth")

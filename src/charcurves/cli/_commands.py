@@ -150,7 +150,8 @@ def cmd_benchmark(a) -> int:
         given = [flag for flag, v in (("--methods", a.methods), ("--snr", a.snr), ("--realizations", a.realizations),
                                       ("--full", a.full or None), ("--forward-cases", a.forward_cases),
                                       ("--retry-failed", a.retry_failed or None), ("--skip", a.skip.strip() or None),
-                                      ("--noise-on", None if a.noise_on == "force" else a.noise_on))
+                                      ("--noise-on", None if a.noise_on == "force" else a.noise_on),
+                                      ("--variant", None if a.variant == "paper" else a.variant))
                  if v is not None]
         if given:
             raise UsageError(f"--report-only runs nothing, so {given[0]} has no effect; drop {given[0]} (or "
@@ -176,7 +177,8 @@ def cmd_benchmark(a) -> int:
     res = run_benchmark(a.out, systems=systems, methods=methods, snr_db=snr, realizations=a.realizations,
                         full=a.full, preset=a.preset, executor=executor, workers=a.workers,
                         forward_cases=a.forward_cases, skip=skip, progress=not a.quiet,
-                        retry_failed=a.retry_failed, base_seed=a.seed, address=address, noise_on=a.noise_on)
+                        retry_failed=a.retry_failed, base_seed=a.seed, address=address, noise_on=a.noise_on,
+                        variant=a.variant)
     say(f"benchmark: {res}", a.quiet)
     return 0
 

@@ -55,7 +55,7 @@ def appendix_f(ctx: _Context) -> tuple[int, int]:
                       realizations=reals, noise_on="state", options=dict(options),
                       method_options=_sr_budget(ctx.methods, ctx.sizes["sr_generations"]),
                       preset=ctx.preset, t_end=ctx.t_end, n_points=ctx.n_points, base_seed=ctx.base_seed,
-                      tag=BENCHMARK_TAG)
+                      tag=BENCHMARK_TAG, variant={s: ctx.sweep.variant_of(s) for s in ctx.systems})
         _log(ctx.progress, f"Appendix F, {name} protocol ({text}): {len(sweep.jobs())} jobs")
         store = os.path.join(ctx.out_dir, f"{stem}.sqlite")
         rep = run_sweep(sweep, store, executor=ctx.executor, workers=ctx.workers, progress=ctx.progress,

@@ -114,8 +114,10 @@ def _overview(rep, df, run, timing) -> None:
                 continue
             levels = sorted(set(g["snr_db"]), reverse=True)
             shown = ", ".join(_snr_text(s) for s in levels[:8]) + (", ..." if len(levels) > 8 else "")
-            grid.append(f"{system}, preset `{preset}`: {g['method'].nunique()} methods x {len(levels)} SNR levels "
-                        f"({shown} dB) x {g['realization'].nunique()} noise realisations = {len(g)} jobs")
+            variants = ", ".join(sorted(set(g["variant"].astype(str))))
+            grid.append(f"{system} (parameters: `{variants}` variant), preset `{preset}`: {g['method'].nunique()} "
+                        f"methods x {len(levels)} SNR levels ({shown} dB) x {g['realization'].nunique()} noise "
+                        f"realisations = {len(g)} jobs")
     rep.bullets(grid)
     if run.get("sizes"):
         s, ran = run["sizes"], set(run.get("sections", ()))
