@@ -23,7 +23,6 @@ Examples
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import os
 import time
@@ -32,6 +31,8 @@ from typing import Any
 
 
 from .._errors import ConfigError
+from ._run_files import BenchmarkResult as BenchmarkResult
+from ._run_files import _Extras, _log
 
 __all__ = [
     "BENCHMARK_SECTIONS",
@@ -192,75 +193,6 @@ from ._tables import (  # noqa: E402 - the tables of the report, re-exported (th
 
 
 # ---------------------------------------------------------------------- the run
-@dataclasses.dataclass
-class BenchmarkResult:
-    """What :func:`run_benchmark` produced.
-
-    Examples
-    --------
-    The example is not run in the tests: even this smallest benchmark takes about 15 s.
-
-    >>> import os
-    >>> from charcurves.experiments import run_benchmark
-    >>> result = run_benchmark("bench", systems=["duffing"], methods=["parametric"], snr_db=[20], realizations=1,
-    ...                        skip=("forward", "lyapunov", "miw", "sensitivity", "appendix-f"))  # doctest: +SKIP
-    >>> result.n_jobs, result.n_failed, os.path.basename(result.report_html)  # doctest: +SKIP
-    (1, 0, 'report.html')
-    """
-
-    out_dir: str
-    results_csv: str
-    report_md: str
-    report_html: str
-    n_jobs: int
-    n_run: int
-    n_failed: int
-    seconds: float
-    section_seconds: dict
-
-    def __str__(self) -> str:
-        return (f"{self.n_jobs} jobs ({self.n_run} run now, {self.n_failed} failed in the store) in "
-                f"{self.seconds:.1f} s; wrote {self.results_csv}, {self.report_md}, {self.report_html}")
-
-
-class _Extras:
-    """``extras.json``: results of the side studies keyed by a signature of their settings."""
-
-    def __init__(self, path: str):
-        self.path = path
-        try:
-            with open(path, encoding="utf-8") as fh:
-                self.data = json.load(fh)
-        except (OSError, ValueError):
-            self.data = {}
-
-    def get(self, section: str, signature: Mapping[str, Any]):
-        entry = self.data.get(section)
-        if entry and entry.get("signature") == json.loads(json.dumps(signature)):
-            return entry.get("value")
-        return None
-
-    def put(self, section: str, signature: Mapping[str, Any], value) -> None:
-        from ._store import _jsonable
-
-        self.data[section] = {"signature": _jsonable(signature), "value": _jsonable(value)}
-        self.save()
-
-    def save(self) -> None:
-        """Write the file (also when empty: the report's rebuild needs it)."""
-        from ..io._csv import atomic_write_bytes
-
-        # compact: the figures' trajectories make most of it (a few hundred kB for a full study)
-        atomic_write_bytes(self.path, json.dumps(self.data, separators=(",", ":")).encode("utf-8"))
-
-
-def _log(progress: bool, msg: str) -> None:
-    if progress:
-        import sys
-
-        print(f"[charcurves benchmark] {msg}", file=sys.stderr, flush=True)
-
-
 def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEMS,
                   methods: Sequence[str] | None = None, snr_db: Sequence[float] | None = None,
                   realizations: int | None = None, full: bool = False, preset: str = "default",
