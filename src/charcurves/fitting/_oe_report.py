@@ -6,7 +6,9 @@ __all__ = ["closed_form_text", "summary_lines"]
 
 
 def closed_form_text(model, digits: int = 6) -> str:
-    """``x'' + f1(x') + f2(x) + b = g F`` with the closed forms written out (separable family).
+    """``x'' + f1(x') + f2(x) + b = g F`` with the closed forms written out (separable family), to
+    ``digits`` significant digits; a term that changes no printed digit of its curve over the curve's
+    range is left out (:func:`display_expression`).
 
     Examples
     --------
@@ -17,12 +19,20 @@ def closed_form_text(model, digits: int = 6) -> str:
     ...           "f2": SymbolicFittedCurve("f2", "x", (-2, 2), "z**3 - z")}
     >>> closed_form_text(FittedModel(get_template(), "demo", curves, gain=1.0, offset=0.0, loss=0.0), digits=3)
     "x'' + 0.3*x' + (x**3 - x) + 0 = 1*F"
+    >>> curves["f1"] = SymbolicFittedCurve("f1", "x'", (-99, 99), "41.7279*z + 7.5452e-37*tanh(3.76e-38*z)")
+    >>> closed_form_text(FittedModel(get_template(), "demo", curves, gain=1.0, offset=0.0, loss=0.0), digits=3)
+    "x'' + 41.7*x' + (x**3 - x) + 0 = 1*F"
     """
     import sympy as sp
 
+    from ._views import display_expression
+
     parts = []
     for name, arg in (("f1", "x'"), ("f2", "x")):
-        expr = model.curves[name].expression()
+        curve = model.curves[name]
+        expr = curve.expression()
+        if expr is not None:  # terms that change no printed digit over the curve's range are left out
+            expr = display_expression(expr, getattr(curve, "domain", None), digits=digits)
         text = "?" if expr is None else str(sp.N(expr, digits)).replace("z", arg)
         parts.append(f"({text})" if expr is not None and len(sp.Add.make_args(sp.expand(expr))) > 1 else text)
     sign = "-" if model.offset < 0 else "+"
