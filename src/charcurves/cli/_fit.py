@@ -95,22 +95,20 @@ def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_g
 def _curves_figure(model, truth, record, title):
     """curves.png: the curves; below them, for a fit refitted by output error, the measured x against
     the model's free run over the whole record and the residual (the diagnostics panel)."""
-    from ..fitting import free_run_diagnostics
-    from ..report import plot_curves, plot_free_run
-
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+
+    from ..fitting import free_run_diagnostics
+    from ..report import plot_curves, plot_free_run
 
     # a Figure on the Agg canvas, not pyplot: nothing global is opened and pyplot's import (about
     # 0.3 s of a 6 s fit) is not paid
     diag = free_run_diagnostics(model, record) if record is not None else None
     n = len(model.curves)
-    if diag is None:
-        fig = Figure(figsize=(5.0 * n, 3.8))
-        FigureCanvasAgg(fig)
-        return plot_curves(model, truth, axes=[fig.add_subplot(1, n, k + 1) for k in range(n)], title=title)
-    fig = Figure(figsize=(5.0 * n, 3.8 + 4.4))
+    fig = Figure(figsize=(5.0 * n, 3.8 if diag is None else 3.8 + 4.4))
     FigureCanvasAgg(fig)
+    if diag is None:
+        return plot_curves(model, truth, axes=[fig.add_subplot(1, n, k + 1) for k in range(n)], title=title)
     grid = fig.add_gridspec(3, n, height_ratios=(1.5, 1.0, 0.7))
     plot_curves(model, truth, axes=[fig.add_subplot(grid[0, k]) for k in range(n)])
     top = fig.add_subplot(grid[1, :])

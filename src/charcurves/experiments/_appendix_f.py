@@ -16,14 +16,13 @@ resume a rerun) and CSV (``appendix_f.csv``, ``appendix_f_default.csv``, what th
 
 from __future__ import annotations
 
-import math
 import os
 
 import numpy as np
 
 from . import _paper_values as paper
 from ._benchmark import BENCHMARK_TAG, _Context, _log, _sr_budget, _write_csv, results_frame
-from ._tables import a_fit_table, ensemble_table
+from ._tables import _snr_of, _snr_text, a_fit_table, ensemble_table
 
 __all__ = ["PROTOCOLS", "appendix_f", "appendix_f_section", "protocol_frames"]
 
@@ -42,13 +41,13 @@ def _protocols_for(preset: str) -> list[str]:
     return ["paper"] if preset == "paper" else ["paper", "default"]
 
 
-def appendix_f(ctx: _Context) -> tuple[int, int]:
+def appendix_f(ctx: _Context) -> tuple[int, int, int]:
     """Run the Appendix F sweeps (noise on x, CC errors only, no forward validation, as the scripts).
-    Returns (jobs, jobs run now) over the protocols."""
+    Returns (jobs, jobs run now, jobs failed in the stores) over the protocols."""
     from ._sweep import Sweep, run_sweep
 
     reals = min(int(ctx.sizes["realizations"]), int(ctx.sizes["appendix_f_realizations"]))
-    n_jobs = n_run = 0
+    n_jobs = n_run = n_failed = 0
     for name in _protocols_for(ctx.preset):
         stem, options, text = PROTOCOLS[name]
         sweep = Sweep(systems=ctx.systems, methods=ctx.methods, snr_db=ctx.sizes["snr_db"],
@@ -61,8 +60,10 @@ def appendix_f(ctx: _Context) -> tuple[int, int]:
         rep = run_sweep(sweep, store, executor=ctx.executor, workers=ctx.workers, progress=ctx.progress,
                         address=ctx.address)
         n_jobs, n_run = n_jobs + rep.n_jobs, n_run + rep.n_run
-        _write_csv(results_frame(store, noise_on="state"), os.path.join(ctx.out_dir, f"{stem}.csv"))
-    return n_jobs, n_run
+        frame = results_frame(store, noise_on="state")
+        n_failed += int((frame["status"] != "ok").sum())
+        _write_csv(frame, os.path.join(ctx.out_dir, f"{stem}.csv"))
+    return n_jobs, n_run, n_failed
 
 
 def protocol_frames(out_dir: str, *, required_for: str | None = None) -> dict:
@@ -83,14 +84,6 @@ def protocol_frames(out_dir: str, *, required_for: str | None = None) -> dict:
                               "protocol, which run.json says were run); restore the file, or run `charcurves benchmark` into this folder "
                               "to write it")
     return out
-
-
-def _snr_of(eta: float) -> float:
-    return math.inf if eta == 0 else round(-20.0 * math.log10(eta), 6) + 0.0
-
-
-def _snr_text(s: float) -> str:
-    return "∞" if math.isinf(s) else f"{s:g}"
 
 
 def _level_rows(frames: dict) -> list[list]:
@@ -117,16 +110,18 @@ def _level_rows(frames: dict) -> list[list]:
 def _a_rows(frames: dict) -> list[list]:
     """Per (system, method): slope-1 A of f1 and f2, the paper protocol's beside the default's, with
     the ratio paper protocol / default (above 1: the default is more accurate)."""
-    fits = {proto: a_fit_table(df, "mean") for proto, df in frames.items()}
-    keys = list(dict.fromkeys((s, m) for f in fits.values() for (s, _, m) in f))
+    # {protocol: {(system, method): fit}}; a folder with two presets' rows shows the first preset's fit
+    fits: dict[str, dict] = {}
+    for proto, df in frames.items():
+        for (s, _, m), v in a_fit_table(df, "mean").items():
+            fits.setdefault(proto, {}).setdefault((s, m), v)
+    keys = list(dict.fromkeys(k for f in fits.values() for k in f))
     rows = []
     for system, method in keys:
         row: list = [system, method]
         for term in ("f1", "f2"):
-            a = {}
-            for proto in ("paper", "default"):
-                hit = [v for (s, _, m), v in fits.get(proto, {}).items() if (s, m) == (system, method)]
-                a[proto] = hit[0]["A"][term] if hit else float("nan")
+            a = {proto: fits.get(proto, {}).get((system, method), {}).get("A", {}).get(term, float("nan"))
+                 for proto in ("paper", "default")}
             pa = paper.APPENDIX_F_A.get(system, {}).get(method)
             ratio = a["paper"] / a["default"] if np.isfinite(a["paper"]) and np.isfinite(a["default"]) and a[
                 "default"] > 0 else None

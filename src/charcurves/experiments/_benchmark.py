@@ -108,8 +108,11 @@ def parse_name_list(text: str, allowed: Sequence[str], what: str) -> tuple[str, 
 
 
 # ---------------------------------------------------------------------- results
-def _eta(snr: float) -> float:
-    return 0.0 if math.isinf(snr) else float(10.0 ** (-snr / 20.0))
+def empty_results_frame():
+    """A results frame without rows (a `--noise-on state` run has no main sweep)."""
+    import pandas as pd
+
+    return pd.DataFrame(columns=list(RESULT_COLUMNS))
 
 
 def results_frame(store_path: str | os.PathLike, *, noise_on: str = "force", tag: str = BENCHMARK_TAG):
@@ -179,6 +182,7 @@ def _all_methods() -> tuple[str, ...]:
 
 
 from ._tables import (  # noqa: E402 - the tables of the report, re-exported (they were defined here)
+    _eta,
     BIAS_LIMITED as BIAS_LIMITED,
     NEURAL as NEURAL,
     NN_X_ETA_MAX as NN_X_ETA_MAX,
@@ -266,15 +270,16 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
 
     t_start = time.perf_counter()
     if report_only:
-        from ._report_inputs import build_report as rebuild
+        from ._report_inputs import load_report_inputs, write_report
 
-        md, page = rebuild(out_dir)
-        csv = os.path.join(os.fspath(out_dir), "results.csv")
-        if not os.path.isfile(csv):  # an Appendix F folder (`--noise-on state`)
-            csv = os.path.join(os.fspath(out_dir), "appendix_f.csv")
-        df = read_results_csv(csv)
-        return BenchmarkResult(os.fspath(out_dir), csv, md, page,
-                               len(df), 0, int((df["status"] != "ok").sum()), time.perf_counter() - t_start,
+        inputs = load_report_inputs(out_dir)
+        md, page = write_report(out_dir, inputs)
+        df, run, _, af = inputs
+        frames = [df] if run.get("noise_on", "force") == "force" else list(af.values())
+        csv = os.path.join(os.fspath(out_dir), "results.csv" if run.get("noise_on", "force") == "force"
+                           else "appendix_f.csv")
+        return BenchmarkResult(os.fspath(out_dir), csv, md, page, sum(len(f) for f in frames), 0,
+                               sum(int((f["status"] != "ok").sum()) for f in frames), time.perf_counter() - t_start,
                                {"report": time.perf_counter() - t_start})
     systems = tuple(systems)
     bad = [s for s in systems if s not in SYSTEMS]
@@ -330,7 +335,7 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
                   method_options=_sr_budget(methods, sizes["sr_generations"]))
     store = os.path.join(out_dir, "results.sqlite")
     assert not isinstance(sweep.realizations, int)  # Sweep made it a tuple
-    n_jobs = n_run = 0
+    n_jobs = n_run = n_failed = 0
     if noise_on == "force":
         _log(progress, f"main sweep: {len(sweep.jobs())} jobs ({len(systems)} systems x {len(methods)} methods x "
                        f"{len(sweep.snr_db)} SNR levels x {len(sweep.realizations)} realisations), "
@@ -343,12 +348,7 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
                         retry_failed=retry_failed)
         n_jobs, n_run = rep.n_jobs, rep.n_run
         timing["main sweep"] = time.perf_counter() - t0
-    if os.path.exists(store) or noise_on == "force":
-        df = results_frame(store)
-    else:  # Appendix F alone: no main store is created
-        import pandas as pd
-
-        df = pd.DataFrame(columns=list(RESULT_COLUMNS))
+    df = results_frame(store) if noise_on == "force" else empty_results_frame()  # state: no main store
     csv_path = os.path.join(out_dir, "results.csv")
     if noise_on == "force":
         _write_csv(df, csv_path)
@@ -378,10 +378,11 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
         timing["sensitivity"] = time.perf_counter() - t0
     if "appendix-f" not in skip and not (slow_preset and any(m in NEURAL for m in methods)):
         t0 = time.perf_counter()
-        af_jobs, af_run = appendix_f(ctx)
+        af_counts = appendix_f(ctx)
         timing["appendix-f"] = time.perf_counter() - t0
         if noise_on == "state":  # the Appendix F study is the run: its jobs and CSV are what it reports
-            n_jobs, n_run, csv_path = af_jobs, af_run, os.path.join(out_dir, "appendix_f.csv")
+            n_jobs, n_run, n_failed = af_counts
+            csv_path = os.path.join(out_dir, "appendix_f.csv")
 
     # ------------------------------------------------------------------ report, from the files alone
     t0 = time.perf_counter()
@@ -398,11 +399,8 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
                                        noise_on=noise_on))
     md, page = build_report(out_dir)
     timing["report"] = time.perf_counter() - t0
-    n_failed = int((df["status"] != "ok").sum()) if len(df) else 0
-    if noise_on == "state":
-        from ._appendix_f import protocol_frames
-
-        n_failed = sum(int((f["status"] != "ok").sum()) for f in protocol_frames(out_dir).values())
+    if noise_on == "force":
+        n_failed = int((df["status"] != "ok").sum()) if len(df) else 0
     res = BenchmarkResult(out_dir, csv_path, md, page, n_jobs, n_run, n_failed,
                           time.perf_counter() - t_start, timing)
     return res
@@ -444,4 +442,3 @@ def _write_csv(df, path: str) -> None:
 
 
 from ._report_inputs import build_report as build_report  # noqa: E402 - re-exported (it was defined here)
-from ._report_inputs import read_results_csv  # noqa: E402

@@ -25,7 +25,8 @@ from typing import Any
 
 from .._errors import ConfigError
 
-__all__ = ["RUN_FILE", "COMMITTED_FILES", "write_run_file", "read_results_csv", "load_report_inputs", "build_report"]
+__all__ = ["RUN_FILE", "COMMITTED_FILES", "write_run_file", "read_results_csv", "load_report_inputs", "build_report",
+           "write_report"]
 
 RUN_FILE = "run.json"
 #: The files a report is rebuilt from (commit these with the report; appendix_f.csv when Appendix F ran).
@@ -61,11 +62,10 @@ def read_results_csv(path: str | os.PathLike):
     >>> float(df["snr_db"][0]), df["preset"][0], float(df["eta"][0])
     (inf, 'default', 0.0)
     """
-    import math
-
     import pandas as pd
 
     from ._benchmark import RESULT_COLUMNS
+    from ._tables import _eta
 
     df = pd.read_csv(path)
     for c in RESULT_COLUMNS:
@@ -75,7 +75,7 @@ def read_results_csv(path: str | os.PathLike):
               "n_cases", "n_failed_cases", "n_censored", "mixed_terms"):
         df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
     if df["eta"].isna().any():
-        df["eta"] = [0.0 if math.isinf(s) else 10.0 ** (-s / 20.0) for s in df["snr_db"]]
+        df["eta"] = [_eta(s) for s in df["snr_db"]]
     df["realization"] = df["realization"].astype(int)
     for c in ("system", "method", "status", "preset", "variant", "noise_on"):
         df[c] = df[c].astype(str)
@@ -100,7 +100,6 @@ def load_report_inputs(out_dir: str | os.PathLike) -> tuple[Any, dict, Any, Any]
         When ``out_dir`` is not a folder, or lacks ``results.csv``, ``run.json``, ``extras.json``
         or (when run.json says Appendix F ran) ``appendix_f.csv``; the message names the file.
     """
-    import pandas as pd
 
     from ._appendix_f import protocol_frames
     from ._benchmark import _Extras
@@ -115,9 +114,9 @@ def load_report_inputs(out_dir: str | os.PathLike) -> tuple[Any, dict, Any, Any]
         raise ConfigError(f"cannot rebuild the report: {os.path.join(out_dir, RUN_FILE)} is not valid JSON ({exc}); "
                           "restore the file or rerun the benchmark") from None
     if run.get("noise_on") == "state":  # Appendix F alone: no main sweep, no results.csv
-        from ._benchmark import RESULT_COLUMNS
+        from ._benchmark import empty_results_frame
 
-        df = pd.DataFrame(columns=list(RESULT_COLUMNS))
+        df = empty_results_frame()
     else:
         df = read_results_csv(_need(out_dir, "results.csv"))
     extras = _Extras(_need(out_dir, "extras.json"))
@@ -146,15 +145,20 @@ def build_report(out_dir: str | os.PathLike, *, timing: Mapping[str, float] | No
     ...     print(type(exc).__name__, str(exc).split(" is missing")[0].endswith("run.json"))
     ConfigError True
     """
+    return write_report(out_dir, load_report_inputs(out_dir), timing=timing)
+
+
+def write_report(out_dir: str | os.PathLike, inputs: tuple, *, timing: Mapping[str, float] | None = None
+                 ) -> tuple[str, str]:
+    """Write the report from ``inputs``, the tuple :func:`load_report_inputs` read from ``out_dir``."""
     from ..report._html import Report
     from . import _report_sections as sections
 
-    out_dir = os.fspath(out_dir)
-    df, run, extras, af = load_report_inputs(out_dir)
+    df, run, extras, af = inputs
     rep = Report("charcurves benchmark: the paper's study")
     sections.write_all(rep, df=df, run=run, extras=extras, appendix_f=af,
                        timing=dict(timing if timing is not None else run.get("timing", {})))
-    return rep.write(out_dir, "report")
+    return rep.write(os.fspath(out_dir), "report")
 
 
 def run_record(*, systems: Sequence[str], methods: Sequence[str], preset: str, full: bool, sizes: Mapping,

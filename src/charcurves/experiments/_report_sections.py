@@ -23,6 +23,7 @@ from ._benchmark import (
     tsep_failure_snr,
 )
 from ._appendix_f import appendix_f_section
+from ._tables import _snr_text
 from ._report_figures import forward_panels, phase_space
 
 __all__ = ["write_all"]
@@ -56,10 +57,6 @@ def _methods_in(df, system: str) -> list[str]:
 def _lyap(extras) -> dict | None:
     entry = extras.data.get("lyapunov")
     return entry.get("value") if entry else None
-
-
-def _snr_text(s: float) -> str:
-    return "∞" if math.isinf(s) else f"{s:g}"
 
 
 def write_all(rep, *, df, run: Mapping[str, Any], extras, appendix_f, timing: Mapping[str, float]) -> None:

@@ -25,6 +25,16 @@ def _eta(snr: float) -> float:
     return 0.0 if math.isinf(snr) else float(10.0 ** (-snr / 20.0))
 
 
+def _snr_of(eta: float) -> float:
+    """The SNR level (dB) of a noise fraction, the inverse of :func:`_eta` (rounded to 1e-6 dB)."""
+    return math.inf if eta == 0 else round(-20.0 * math.log10(eta), 6) + 0.0
+
+
+def _snr_text(s: float) -> str:
+    """An SNR level as the report writes it ("∞" for the noise-free level)."""
+    return "∞" if math.isinf(s) else f"{s:g}"
+
+
 def _ok(df):
     return df[df["status"] == "ok"]
 
