@@ -35,6 +35,22 @@ def test_the_floor_lives_in_data_and_selection_re_exports_it():
     assert selection.noise_floor is data.noise_floor and selection.NoiseFloor is data.NoiseFloor
 
 
+@pytest.mark.parametrize("window, order", [(7, 3), (11, 4), (15, 5), (31, 3), (51, 3)])
+def test_the_floors_local_polynomial_residual_is_scipys_savitzky_golay(window, order):
+    # the floor computes the Savitzky-Golay weights with numpy (scipy.signal's import is a sixth of a
+    # short fit process); they must be scipy's, and the residual variance that of savgol_filter's
+    from scipy.signal import savgol_coeffs, savgol_filter
+
+    from charcurves.data import noise_variance
+
+    t = np.linspace(0.0, 20.0, 1500)
+    y = np.sin(t) + np.sin(3.1 * t) + 0.02 * np.random.default_rng(5).normal(size=t.size)
+    h0 = savgol_coeffs(window, order)[window // 2]
+    expected = np.mean(((y - savgol_filter(y, window, order))[window:-window]) ** 2) / (1.0 - h0)
+    assert noise_variance(y, [(window, order)]) == pytest.approx(expected, rel=1e-10)
+    assert noise_variance(y, [(window, order)]) == pytest.approx(0.02**2, rel=0.15)
+
+
 # ---------------------------------------------------------------------- the paper's records: no warning
 @pytest.mark.parametrize("system, snr, method", [("duffing", 20.0, "parametric"), ("duffing", 30.0, "poly-cc"),
                                                  ("stick-slip", 20.0, "nn-cc+sym"), ("stick-slip", 25.0, "nn-cc+sym")])
