@@ -377,52 +377,6 @@ def test_ctrl_c_in_a_chunked_fit_leaves_the_later_chunks_untrained(family):
     assert all(np.isfinite(m.curves["f1"](v)).all() and np.isfinite(m.loss) for m in models)
 
 
-@pytest.mark.parametrize("preset, phase, at", [("paper", "adam", 100), ("default", "lm", None)])
-def test_a_swallowed_ctrl_c_still_stops_the_fit_at_its_next_step(preset, phase, at):
-    """Python only prints a KeyboardInterrupt raised while a finaliser runs; the command line's
-    handler therefore also calls request_stop, which every training loop polls once per step.
-    Here the progress callback makes the request without raising (the swallowed case)."""
-    from charcurves.data import corrupt
-    from charcurves.fitting import clear_stop, request_stop, stop_requested
-    from charcurves.systems import get_system
-
-    rec = corrupt(get_system("duffing").simulate(n_points=300), 30, seed=0)
-    calls = []
-
-    def progress(ph, step, total, loss):
-        calls.append((ph, step))
-        if ph == phase and (at is None or step == at):
-            request_stop()
-
-    try:
-        model = cc.CharacteristicCurves(method="nn-cc", preset=preset, threads=1, progress=progress).fit(rec).model_
-    finally:
-        assert stop_requested()
-        clear_stop()
-    assert not stop_requested()
-    assert calls[-1][0] == phase and calls.count(calls[-1]) == 1, "no step may report after the request"
-    assert model.info["interrupted"] is True and model.info["stopped_by"] == "interrupted"
-    if phase == "adam":
-        assert calls == [("adam", 0), ("adam", 100)] and model.info["adam_steps"] == 101
-    else:
-        assert model.info["lm_iterations"] == calls[-1][1] + 1
-    assert np.isfinite(model.loss) and np.isfinite(model.curves["f1"](np.linspace(-1, 1, 9))).all()
-
-
-def test_the_command_lines_signal_handler_requests_the_stop_and_withdraws_it_at_the_end():
-    from charcurves.cli._common import sigterm_as_interrupt
-    from charcurves.fitting import stop_requested
-
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        before = signal.getsignal(sig)
-        with sigterm_as_interrupt():
-            with pytest.raises(KeyboardInterrupt):
-                os.kill(os.getpid(), sig)
-                time.sleep(5)  # the handler raises at once; the sleep is never finished
-            assert stop_requested()
-        assert not stop_requested() and signal.getsignal(sig) is before
-
-
 def test_ctrl_c_during_post_sr_writes_the_finished_fit(tmp_path, record, monkeypatch, capsys):
     """Operon's search does not watch for Ctrl-C; the interrupt arrives when it returns. The
     finished fit before post-SR is written, and what was skipped is said."""

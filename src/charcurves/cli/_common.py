@@ -61,36 +61,24 @@ def make_out_dir(out_dir: str) -> None:
 
 
 def _raise_interrupt(signum, frame):
-    # the training loops also poll a stop request: should the KeyboardInterrupt be swallowed (raised
-    # while a finaliser runs, where Python only prints it), the fit still stops at its next step.
-    # No fitting module loaded means no loop is running that could need it (and torch stays unloaded).
-    fitting = sys.modules.get("charcurves.fitting")
-    if fitting is not None:
-        fitting.request_stop()
     raise KeyboardInterrupt
 
 
 @contextlib.contextmanager
 def sigterm_as_interrupt():
-    """Ctrl-C (SIGINT) and SIGTERM (what schedulers and ``timeout`` send) stop the command: the fit
-    keeps the best model so far and writes it, sweeps keep their finished rows. Main thread only.
-    Both raise ``KeyboardInterrupt`` and ask the training loops to stop (``fitting.request_stop``);
-    the request is withdrawn when the command ends."""
+    """SIGTERM (what schedulers and ``timeout`` send) stops the command like Ctrl-C: the fit keeps
+    the best model so far and writes it, sweeps keep their finished rows. Main thread only."""
     import signal
     import threading
 
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = {sig: signal.signal(sig, _raise_interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
+    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
         yield
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-        fitting = sys.modules.get("charcurves.fitting")
-        if fitting is not None:
-            fitting.clear_stop()
+        signal.signal(signal.SIGTERM, previous)
 
 
 @contextlib.contextmanager

@@ -45,9 +45,6 @@ from ._output_error import output_error_fit as output_error_fit
 from ._output_error import refine_output_error as refine_output_error
 from ._oe_report import summary_lines as summary_lines
 from ._pipeline import raw_fit as raw_fit
-from ._train import clear_stop as clear_stop
-from ._train import request_stop as request_stop
-from ._train import stop_requested as stop_requested
 from ._plots import figure_png as figure_png
 from ._plots import plot_curves as plot_curves
 from ._plots import plot_model as plot_model

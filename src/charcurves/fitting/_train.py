@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import threading
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
@@ -21,38 +20,8 @@ if TYPE_CHECKING:
     from ._presets import TrainingPreset
     from ._problem import LeastSquaresProblem
 
-__all__ = ["TrainingLog", "request_stop", "clear_stop", "stop_requested", "train", "train_in_chunks", "train_with_preset", "chunk_log", "merge_logs",
+__all__ = ["TrainingLog", "train", "train_in_chunks", "train_with_preset", "chunk_log", "merge_logs",
            "torch_threads", "start_weights", "model_chunk", "BatchedAdam"]
-
-
-#: set by :func:`request_stop`; every training loop of the process polls it once per step
-_STOP = threading.Event()
-
-
-def request_stop() -> None:
-    """Ask every training loop of this process to stop at its next step, as Ctrl-C does.
-
-    A signal handler (the command line's, for SIGINT and SIGTERM) calls this before it raises
-    ``KeyboardInterrupt``: should Python swallow that exception (raised while a finaliser or a
-    garbage-collector callback runs, where it is only printed), the loops still see the request
-    and stop with the best weights so far. :func:`clear_stop` withdraws it.
-    """
-    _STOP.set()
-
-
-def clear_stop() -> None:
-    """Withdraw a :func:`request_stop` (a command that handled the interrupt clears it on exit)."""
-    _STOP.clear()
-
-
-def stop_requested() -> bool:
-    """Whether :func:`request_stop` was called (and not withdrawn)."""
-    return _STOP.is_set()
-
-
-def _check_stop() -> None:
-    if _STOP.is_set():
-        raise KeyboardInterrupt
 
 
 @dataclasses.dataclass
@@ -107,7 +76,6 @@ def _adam(problem, theta, steps, lr, stop_loss, log, progress, holder, check_eve
     # Ctrl-C keeps, per model, the best weights seen at a checkpoint (not the latest ones)
     best, best_loss = last_good.clone(), torch.full_like(done, float("inf"), dtype=theta.dtype)
     for step in range(steps):
-        _check_stop()
         opt.zero_grad(set_to_none=True)
         per_model = problem.loss(theta)
         per_model.sum().backward()
@@ -244,7 +212,6 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
     eye = torch.eye(P, dtype=theta.dtype, device=theta.device)
     nu = torch.full((K,), 2.0, dtype=theta.dtype, device=theta.device)
     for it in range(max_iter):
-        _check_stop()
         if not bool(active.any()):
             break
         if deadline is not None and time.monotonic() > deadline:
