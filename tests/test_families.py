@@ -13,7 +13,7 @@ from charcurves import ConfigError, DataError, IdentifiabilityError
 from charcurves.cli import main
 from charcurves.data import corrupt
 from charcurves.data._trajectory import MultiTrajectory
-from charcurves.fitting import CharacteristicCurves, load_model
+from charcurves.fitting import PRESETS, CharacteristicCurves, load_model
 from charcurves.simulate import simulate_model
 from charcurves.systems import corrupt_forces, get_system
 
@@ -121,12 +121,45 @@ def test_even_curves_start_away_from_their_stationary_point_and_expose_their_out
     torch.testing.assert_close((cols * th_even[:, where].unsqueeze(1)).sum(-1), even.evaluate(th_even, u))
 
 
+#: (f1, f2) normalised-RMSE bounds on the 25 dB first-order record (noise on the forcing). Measured
+#: over noise seeds 0-2 (fit seed 0), worst f1 / f2: nn-cc 1.53e-3 / 1.18e-2, parametric 4.21e-3 /
+#: 1.50e-2 (noise seed 0, the test's, is the worst f2 of both); each bound is 1.5 times the worst.
+FIRST_ORDER_BOUNDS = {"nn-cc": (2.3e-3, 1.8e-2), "parametric": (6.5e-3, 2.3e-2)}
+
+
 @pytest.mark.parametrize("method", ["nn-cc", "parametric"])
 def test_first_order_recovers_curves_at_25db(first_order, method):
     s, _, noisy = first_order
     model = _fit(s, noisy, method)
     errs = {k: nrmse(c, s.true_curves()[k]) for k, c in model.curves.items()}
-    assert errs["f1"] <= 0.05 and errs["f2"] <= 0.05, errs
+    f1_bound, f2_bound = FIRST_ORDER_BOUNDS[method]
+    assert errs["f1"] <= f1_bound and errs["f2"] <= f2_bound, errs
+
+
+def test_first_order_measured_record_gets_its_quadratic_and_reaches_the_limit():
+    """Noise on x only (40 dB), the default objective. f2 = 0.5 + x^2 enters times x', which vanishes
+    at the ends of x's range: a network alone was flattened there by its weight decay (f2 1.94 %).
+    The unconstrained curves are now tested for a quadratic (beside the cubic) as well as a cubic
+    term, and f2 gets its x^2: measured f1 0.13 %, f2 0.24 %, against the limit of the parametric fit
+    on the true basis refined by output error, 0.14 % / 0.17 % (benchmarks/bench_first_order_edges.py)."""
+    s = get_system("first-order")
+    record = corrupt(s.simulate(), 40.0, on="state", seed=0)
+    model = _fit(s, record, "nn-cc")
+    assert model.curves["f1"].spec.powers == (3,) and model.curves["f2"].spec.powers == (2,)
+    assert model.info["objective"] == "output-error"
+    errs = {k: nrmse(c, s.true_curves()[k]) for k, c in model.curves.items()}
+    assert errs["f1"] <= 2.5e-3 and errs["f2"] <= 4e-3, errs
+
+
+def test_the_quadratic_test_does_not_mistake_duffings_cubic_for_one():
+    """Duffing's f2 = -x + x^3 is odd: beside its cubic, a quadratic is not significant (F 0.006 on
+    this record; 14.9 when the quadratic was tested without the cubic in the base)."""
+    s = get_system("duffing")
+    quick = PRESETS["default"].replace(n_starts=1, adam_steps=0, lm_max_iter=2)
+    model = CharacteristicCurves(method="nn-cc", preset=quick, random_state=0, threads=1).fit(
+        corrupt(s.simulate(), 20.0, seed=0)).model_
+    assert model.curves["f2"].spec.powers == (3,)
+    assert 2 not in model.curves["f1"].spec.powers
 
 
 @pytest.mark.parametrize("method", ["nn-cc", "parametric", "poly-cc"])

@@ -31,8 +31,9 @@ class Neural(AbstractCurve):
         a least-squares test finds a jump at zero velocity significant (velocity curves only).
     powers : tuple of int or "auto", optional
         Polynomial terms beside the network (see :class:`~charcurves.curves.NeuralCurve`); "auto"
-        (the default preset's): a cubic (odd or unconstrained curves) or quadratic (even curves) term
-        where a least-squares F test on the record finds the curve nonlinear, none beside a jump.
+        (the default preset's): a quadratic (even or unconstrained curves) and a cubic (odd or
+        unconstrained curves) term, each where a least-squares F test on the record finds it
+        significant, none beside a jump.
     harmonics : tuple of float or "auto", optional
         Angular frequencies ``w`` (per unit of the curve's argument ``z``) of harmonic terms
         ``a sin(w z) + b cos(w z)`` beside the network; "auto" (the default preset's): the

@@ -125,10 +125,15 @@ def resolve_jumps(reps: dict, records, template: EquationTemplate, estimated: li
             if setting != "auto":
                 powers.append((name, tuple(setting)))
             elif name not in layout:
+                # even curves may get a quadratic, odd ones a cubic, unconstrained ones either or both
+                # (a convex curve such as 0.5 + x^2 is then carried by its term up to the range's ends,
+                # where a network alone is flattened by its weight decay if the record says little there)
                 sym = rep.symmetry_name
-                k = 2 if sym == "even" else 3
-                if nonlinearity_test(rec, template, reps, name, k, layout) > JUMP_F_THRESHOLD:
-                    powers.append((name, (k,)))
+                ks = (2,) if sym == "even" else (3,) if sym == "odd" else (2, 3)
+                chosen = tuple(k for k in ks if nonlinearity_test(rec, template, reps, name, k, layout)
+                               > JUMP_F_THRESHOLD)
+                if chosen:
+                    powers.append((name, chosen))
         out.append((tuple(layout), tuple(powers), _harmonics(reps, rec, template, preset, layout)))
     return out
 
@@ -172,8 +177,10 @@ def rep_scale(rep, z, preset: TrainingPreset) -> float:
 def nonlinearity_test(traj, template: EquationTemplate, reps: dict, name: str, power: int, jumps) -> float:
     """F statistic of ``m z^power`` for curve ``name`` in a least-squares fit of the equation whose
     curves are otherwise linear (odd curves), constant-plus-quadratic (even) or linear-plus-quadratic
-    (unconstrained), with a sign column for each learned jump: large when the curve is clearly
-    nonlinear (Duffing's x^3), of order 1 when it is linear (damping, a linear spring)."""
+    (unconstrained; a quadratic of an unconstrained curve is tested beside its cubic, so that an odd
+    cubic such as Duffing's is not mistaken for one), with a sign column for each learned jump: large
+    when the curve is clearly nonlinear (Duffing's x^3), of order 1 when it is linear (damping, a
+    linear spring)."""
     D = template.design(traj)
     E = D["E"]
     cols = [np.ones(E * D["n"])] if E == 1 else []
@@ -186,6 +193,8 @@ def nonlinearity_test(traj, template: EquationTemplate, reps: dict, name: str, p
             cols.append(m * z)
         if sym != "odd":
             cols += [m, m * z**2] if cname != name or power != 2 else [m]
+        if cname == name and sym not in ("odd", "even") and power == 2:
+            cols.append(m * z**3)  # unconstrained: the quadratic is tested beside the cubic (Duffing's x^3)
         if cname in jumps:
             cols.append(m * np.sign(z))
     cols += list(D["scalars"].values())
