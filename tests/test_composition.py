@@ -45,18 +45,28 @@ def test_issue_acceptance_mixed_representations_save_and_reload(tmp_path, duffin
     assert settings["differentiator"].startswith("SavitzkyGolay(window=31, order=3")
 
 
-def test_issue_acceptance_user_equation_with_mixed_curves():
-    """``Equation("x'' + f1(x)*x' + f2(x) = F", f1=Neural(), f2=Polynomial(degree=5))`` on a
-    position-damping record (Van der Pol type: f1 = x^2 - 1, f2 = x + x^3/2)."""
+#: normalised-RMSE bounds per arrangement, 1.5x the worst measured over noise seeds 1-3 (nn/poly:
+#: f1 1.11e-3, f2 5.7e-4; poly/nn: f1 2.31e-3, f2 3.1e-4). Before a polynomial without a constant
+#: column got its own constant in the gradient fit, nn/poly's f2 was 2.2e-2 (pinned at its centre)
+#: and poly/nn's f1 0.89 (it could not hold f1(0) = -1 as the factor of x').
+MIXED_BOUNDS = {"nn/poly": {"f1": 1.7e-3, "f2": 9e-4}, "poly/nn": {"f1": 3.5e-3, "f2": 5e-4}}
+
+
+@pytest.mark.parametrize("arrangement", ["nn/poly", "poly/nn"])
+def test_issue_acceptance_user_equation_with_mixed_curves(arrangement):
+    """``Equation("x'' + f1(x)*x' + f2(x) = F", f1=Neural(), f2=Polynomial(degree=5))`` (and the
+    other way round) on a position-damping record (Van der Pol type: f1 = x^2 - 1, f2 = x + x^3/2)."""
     system = get_system("van-der-pol")
     record = corrupt(system.simulate(), 30, seed=1)
-    template = cc.Equation("x'' + f1(x)*x' + f2(x) = F", f1=cc.Neural(), f2=cc.Polynomial(degree=5))
+    first, second = (cc.Neural(), cc.Polynomial(degree=5)) if arrangement == "nn/poly" else \
+        (cc.Polynomial(degree=5), cc.Neural())
+    template = cc.Equation("x'' + f1(x)*x' + f2(x) = F", f1=first, f2=second)
     model = cc.CharacteristicCurves(template=template, threads=1).fit(record).model_
     truth = system.true_curves()
     for name, curve in model.curves.items():
         z = curve.grid(400)
         nrmse = np.sqrt(np.mean((curve(z) - truth[name](z)) ** 2)) / np.std(truth[name](z))
-        assert nrmse < 0.03, (name, nrmse)  # measured 0.6 % and 0.2 %
+        assert nrmse < MIXED_BOUNDS[arrangement][name], (name, nrmse)
     assert model.template.family == "custom"
 
 

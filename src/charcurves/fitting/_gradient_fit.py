@@ -107,6 +107,7 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
     """
     import torch
 
+    from ._linear_fit import constant_carriers, constant_slots
     from ._train import chunk_log, start_weights
     from ._warm import gain_estimate, sharpen_unresolved_jumps, train_batched
 
@@ -128,8 +129,15 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
     template.check_identifiable(pinned)
     offsets = template.offsets_needed(pinned)
     E = template.n_equations
-    # scalars and the offsets of equations 2.. are constant curves times their signal; equation 1's is the bias
-    const_names = list(template.scalar_names) + [f"b{e + 1}" for e in offsets if E > 1]
+    # linear curves without a constant column (Polynomial...) get their own constant where the gauge
+    # leaves one, as in the linear fitter: a polynomial f1 of f1(x) x' needs it (without it, it was
+    # pinned at its centre and bent elsewhere to make up for it)
+    carriers = constant_carriers(template, reps)
+    own = [n for kind, n in constant_slots(template, pinned, offsets, carriers) if kind == "curve"] if carriers else []
+    # scalars, the offsets of equations 2.. and the carriers' constants are constant curves times their
+    # signal; equation 1's offset is the bias
+    const_names = (list(template.scalar_names) + [f"b{e + 1}" for e in offsets if E > 1]
+                   + [f"const:{n}" for n in own])
     const = ConstantParametrisation()
     force_side = template.free_gain and template.gain_on == "force"
 
@@ -141,6 +149,8 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
         designs.append(D)
         scales.append({k: reps[k].scaling(D["args"][k], preset) for k in names})
         signals = dict(D["scalars"])
+        signals.update({f"const:{n}": np.broadcast_to(np.asarray(D["mult"][n], dtype=float), (E * D["n"],))
+                        for n in own})
         for e in offsets:
             if E > 1:
                 ind = np.zeros(E * D["n"])
@@ -239,17 +249,20 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
             # F = h x'' + f~ + b~  <=>  x'' + g f~ + g b~ = g F with g = 1/h
             g = g_est[k] / g
             factor = s_out * g
+        scal = {}
+        for j, cname in enumerate(const_names):
+            val = float(problem.block(rows, len(names) + j)[:, 0].mean())
+            scal[cname] = val * factor / sig_scale[k][cname]
+        own_const = {n: scal.pop(f"const:{n}") for n in own}
         fitted = {}
         for i, name in enumerate(names):
             z = designs[k]["args"][name]
             center, half = scales[k][name]
             extra = {"network": params[name]} if reps[name].kind == "neural" else {}
+            if name in own_const:
+                extra["constant"] = own_const[name]
             fitted[name] = reps[name].fitted(name, template.arguments[name], (float(z.min()), float(z.max())),
                                              problem.block(rows, i).numpy(), center, half, factor, **extra)
-        scal = {}
-        for j, cname in enumerate(const_names):
-            val = float(problem.block(rows, len(names) + j)[:, 0].mean())
-            scal[cname] = val * factor / sig_scale[k][cname]
         offs = {e: scal.pop(f"b{e + 1}") for e in offsets if E > 1}
         if bias:
             offs[0] = float(problem.bias_of(rows).mean()) * factor

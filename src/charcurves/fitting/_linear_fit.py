@@ -93,10 +93,7 @@ def fit_linear(record, template: EquationTemplate, reps: dict, *, method: str, m
     rows = np.tile(mask, E)
     names = template.curve_names
     sparse = [nm for nm in names if isinstance(reps[nm], SparseLibrary)]
-    # pysindy's library has no bias: the separable family keeps the paper's SINDy; other templates
-    # give SparseLibrary curves their constants as Polynomial curves get theirs (odd curves carry none)
-    carriers = {nm for nm in names if isinstance(reps[nm], Polynomial)
-                or (isinstance(reps[nm], SparseLibrary) and template.family != "separable")} if constant else set()
+    carriers = constant_carriers(template, reps) if constant else set()
     scalings, pinned = {}, {}
     cols: list = []
     owners: list[tuple[str, Any]] = []  # (curve name or "__scalar"/"__offset", what the column is)
@@ -118,11 +115,7 @@ def fit_linear(record, template: EquationTemplate, reps: dict, *, method: str, m
     # are 0 by the anchors); the equations' free constants where no curve can carry one
     offsets = template.offsets_needed(pinned)
     if carriers:
-        slots, vecs = template._freedoms(pinned, template._priority(pinned, template.anchors, offsets))
-        pivots = {p for p, _ in vecs}
-        for kind, name in slots:
-            if (kind, name) in pivots or kind == "scalar" or (kind == "curve" and name not in carriers):
-                continue
+        for kind, name in constant_slots(template, pinned, offsets, carriers):
             if kind == "curve":
                 cols.append(D["mult"][name])
                 owners.append((name, "const"))
@@ -184,6 +177,27 @@ def fit_linear(record, template: EquationTemplate, reps: dict, *, method: str, m
     _describe(info, reps, curves, scalings, template)
     info["train_seconds"] = time.perf_counter() - t0
     return finish_model(template, method, curves, gain, offs, scalars, record, info, mask)
+
+
+def constant_carriers(template, reps) -> set[str]:
+    """The linear curves without a constant column that carry their own constant where the gauge
+    lets them: Polynomial curves, and SparseLibrary curves outside the separable family (pysindy's
+    library has no bias: the separable family keeps the paper's SINDy)."""
+    from ..curves import Polynomial, SparseLibrary
+
+    return {nm for nm in template.curve_names if isinstance(reps[nm], Polynomial)
+            or (isinstance(reps[nm], SparseLibrary) and template.family != "separable")}
+
+
+def constant_slots(template, pinned: dict, offsets: list[int], carriers) -> list[tuple[str, str]]:
+    """The constant columns a fit with ``carriers`` needs: ``("curve", name)`` for a carrier's own
+    constant (odd carriers are pinned and carry none) and ``("offset", "b<e>")`` for an equation's,
+    on the slots the gauge leaves free (its pivots are fixed at 0 by the anchors). A carrier that
+    multiplies a signal (f1(x) x') always keeps its constant: nothing else can stand in for it."""
+    slots, vecs = template._freedoms(pinned, template._priority(pinned, template.anchors, offsets))
+    pivots = {p for p, _ in vecs}
+    return [(kind, name) for kind, name in slots
+            if (kind, name) not in pivots and kind != "scalar" and not (kind == "curve" and name not in carriers)]
 
 
 def _indicator(e: int, E: int, n: int) -> np.ndarray:
