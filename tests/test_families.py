@@ -153,13 +153,17 @@ def test_first_order_measured_record_gets_its_quadratic_and_reaches_the_limit():
 
 def test_the_quadratic_test_does_not_mistake_duffings_cubic_for_one():
     """Duffing's f2 = -x + x^3 is odd: beside its cubic, a quadratic is not significant (F 0.006 on
-    this record; 14.9 when the quadratic was tested without the cubic in the base)."""
+    the 20 dB record; 14.9 when the quadratic was tested without the cubic in the base). On a
+    measured record (30 dB noise on x, estimated derivatives) F reaches 16.3, above the 0.1 % point
+    of the exact test but far below the 100 an unconstrained curve's quadratic needs (the
+    first-order f2 = 0.5 + x^2: 3400); with the quadratic, nn-cc's f2 there was 1.9x worse."""
     s = get_system("duffing")
     quick = PRESETS["default"].replace(n_starts=1, adam_steps=0, lm_max_iter=2)
-    model = CharacteristicCurves(method="nn-cc", preset=quick, random_state=0, threads=1).fit(
-        corrupt(s.simulate(), 20.0, seed=0)).model_
-    assert model.curves["f2"].spec.powers == (3,)
-    assert 2 not in model.curves["f1"].spec.powers
+    for record in (corrupt(s.simulate(), 20.0, seed=0), corrupt(s.simulate(), 30.0, on="state", seed=0)):
+        model = CharacteristicCurves(method="nn-cc", preset=quick, objective="equation-error", random_state=0,
+                                     threads=1).fit(record).model_
+        assert model.curves["f2"].spec.powers == (3,)
+        assert 2 not in model.curves["f1"].spec.powers
 
 
 @pytest.mark.parametrize("method", ["nn-cc", "parametric", "poly-cc"])
