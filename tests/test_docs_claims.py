@@ -32,3 +32,31 @@ def test_the_committed_sr_cc_is_the_refit_equal_to_parametric_in_525_of_610_jobs
     for page in ("benchmark.md", "deviations.md"):
         text = re.sub(r"\s+", " ", (ROOT / "docs" / page).read_text(encoding="utf-8"))
         assert "525 of" in text and "610" in text, page
+
+
+#: committed benchmark folders that carry run.json: their report must rebuild from the repo alone
+COMMITTED_RUNS = ["scripts-stick-slip", pytest.param("scripts-duffing", marks=pytest.mark.slow),
+                  pytest.param("appendix-f", marks=pytest.mark.slow)]
+
+
+@pytest.mark.parametrize("folder", COMMITTED_RUNS)
+def test_a_committed_report_rebuilds_byte_for_byte_from_the_repo_alone(folder, tmp_path):
+    """`charcurves benchmark --report-only` on a copy of the folder's small committed files (no
+    results.sqlite, no models) gives the committed report.md, report.html and figures, byte for byte."""
+    import shutil
+
+    from charcurves.cli import main
+
+    src = ROOT / "benchmarks" / "results" / folder
+    copy = tmp_path / folder
+    copy.mkdir()
+    inputs = [p for p in src.iterdir() if p.suffix in (".csv", ".json")]
+    assert {p.name for p in inputs} >= {"run.json"}
+    for p in inputs:
+        shutil.copy(p, copy / p.name)
+    assert main(["benchmark", "--out", str(copy), "--report-only", "--quiet"]) == 0
+    built = sorted(p.relative_to(copy) for p in copy.rglob("*") if p.suffix in (".md", ".html", ".png"))
+    committed = sorted(p.relative_to(src) for p in src.rglob("*") if p.suffix in (".md", ".html", ".png"))
+    assert built == committed and len(built) > 3
+    for rel in committed:
+        assert (copy / rel).read_bytes() == (src / rel).read_bytes(), rel
