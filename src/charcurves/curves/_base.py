@@ -171,7 +171,7 @@ class LinearCurve(AbstractCurve):
     (2, True)
     >>> template = Separable(f1=Polynomial(degree=1), f2=Cubic())
     >>> model = cc.CharacteristicCurves(template=template).fit(get_system("duffing").simulate()).model_
-    >>> [round(float(model.curves["f2"](x)), 6) for x in (1.0, 2.0)]  # x**3 - x
+    >>> [round(float(model.curves["f2"](x)), 6) + 0.0 for x in (1.0, 2.0)]  # x**3 - x (+ 0.0: no -0.0)
     [0.0, 6.0]
     """
 

@@ -293,8 +293,8 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
         if E > 1:
             info["n_equations"] = E
         if log.interrupted:  # say what this record's own chunk did: finished, interrupted or never trained
-            own = chunk_log(logs, k * R)
-            info.update(adam_steps=own.adam_steps, lm_iterations=own.lm_iterations, stopped_by=own.stopped_by)
+            chunk = chunk_log(logs, k * R)
+            info.update(adam_steps=chunk.adam_steps, lm_iterations=chunk.lm_iterations, stopped_by=chunk.stopped_by)
         if unresolved_jump is not None:
             info["jump_width_unresolved"] = bool(unresolved_jump[k * R + members].all())
         models.append(finish_model(template, method, fitted, g, offs, scal, records[k], info,
