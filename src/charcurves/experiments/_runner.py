@@ -257,7 +257,89 @@ def run_unit(jobs: list[Job], settings: RunSettings) -> list[dict[str, Any]]:
     # ------------------------------------------------------------------ fits
     models: dict[int, Any] = {}
     fit_seconds: dict[int, float] = {}
-    pending = [i for i in range(len(jobs)) if i in datasets]
+    batch_of: dict[int, int] = {}
+    by_method: dict[str, list[int]] = {}
+    for i in range(len(jobs)):
+        if i in datasets:
+            by_method.setdefault(jobs[i].method, []).append(i)
+    for plain, distilled in _post_sr_pairs(jobs, by_method):
+        _fit_pair(jobs, plain, distilled, datasets, settings, models, fit_seconds, batch_of)
+    from ..fitting import shared_fit_base
+
+    # the methods others extend first: their searches are the ones the extensions then find done
+    for method, idx in sorted(by_method.items(), key=lambda kv: shared_fit_base(kv[0]) is not None):
+        pending = [i for i in idx if i not in models]
+        _fit_jobs(jobs, pending, datasets, settings, started, models, fit_seconds, batch_of, rows)
+    _count_shared_searches(jobs, by_method, fit_seconds)
+
+    # ------------------------------------------------------------------ scoring
+    for i, model in models.items():
+        job = jobs[i]
+        t0 = time.perf_counter()
+        try:
+            rows[i] = _score(job, model, settings, started, fit_seconds[i] + data_seconds.get(i, 0.0), batch_of[i],
+                             t_unit)
+        except Exception as exc:  # noqa: BLE001
+            rows[i] = _failed_row(job, exc, started, fit_seconds[i] + time.perf_counter() - t0, "evaluate")
+    return [rows[i] for i in range(len(jobs))]
+
+
+def _post_sr_pairs(jobs: list[Job], by_method: dict[str, list[int]]) -> list[tuple[list[int], list[int]]]:
+    """(plain, distilled) job indices on the same records: X and "X+post-sr" (one fit, finished twice)."""
+    from ..fitting import METHODS, shared_fit_base
+
+    out = []
+    for method, idx in by_method.items():
+        base = shared_fit_base(method)
+        if base is None or base not in by_method or not METHODS[method].get("post_sr"):
+            continue
+        plain_of = {(jobs[i].noise_seed, jobs[i].fit_seed): i for i in by_method[base]}
+        pairs = [(plain_of[(jobs[i].noise_seed, jobs[i].fit_seed)], i) for i in idx
+                 if (jobs[i].noise_seed, jobs[i].fit_seed) in plain_of]
+        if pairs:
+            out.append(([p for p, _ in pairs], [d for _, d in pairs]))
+    return out
+
+
+def _fit_pair(jobs, plain, distilled, datasets, settings, models, fit_seconds, batch_of) -> None:
+    """Fit X and X+post-sr from one training; on any failure leave them to be fitted one method at a time.
+
+    Each job's ``fit_seconds`` is what a fit of its own method costs: the training's share for both, plus
+    the job's own post-SR for the distilled one (the training is counted for each method that uses it).
+    """
+    from ..fitting import fit_with_post_sr
+
+    t0 = time.perf_counter()
+    try:
+        a, b = fit_with_post_sr(_estimator(jobs[plain[0]], settings), _estimator(jobs[distilled[0]], settings),
+                                [datasets[i] for i in plain], seeds=[jobs[i].fit_seed for i in plain])
+    except Exception:  # noqa: BLE001 - the per-method path isolates and records the failure
+        return
+    post = [float(m.info.get("post_sr_seconds", 0.0)) for m in b]
+    share = max(0.0, time.perf_counter() - t0 - sum(post)) / len(plain)
+    for i, j, ma, mb, p in zip(plain, distilled, a, b, post):
+        models[i], fit_seconds[i], batch_of[i] = ma, share, len(plain)
+        models[j], fit_seconds[j], batch_of[j] = mb, share + p, len(plain)
+
+
+def _count_shared_searches(jobs, by_method, fit_seconds) -> None:
+    """sr-cc+refit after sr-cc on the same record finds every search done (the engine remembers them):
+    its ``fit_seconds`` gets sr-cc's, so that it says what the method costs on its own."""
+    from ..fitting import METHODS, shared_fit_base
+
+    for method, idx in by_method.items():
+        base = shared_fit_base(method)
+        if base is None or base not in by_method or METHODS[method].get("post_sr"):
+            continue
+        base_of = {(jobs[i].noise_seed, jobs[i].fit_seed): i for i in by_method[base] if i in fit_seconds}
+        for i in idx:
+            b = base_of.get((jobs[i].noise_seed, jobs[i].fit_seed))
+            if b is not None and i in fit_seconds:
+                fit_seconds[i] += fit_seconds[b]
+
+
+def _fit_jobs(jobs, pending, datasets, settings, started, models, fit_seconds, batch_of, rows) -> None:
+    """Fit jobs of one method: neural ones in one batch (one by one after a failure), the others one by one."""
     batched = len(pending) > 1 and _is_neural(jobs[pending[0]].method)
     if batched:
         t0 = time.perf_counter()
@@ -266,8 +348,8 @@ def run_unit(jobs: list[Job], settings: RunSettings) -> list[dict[str, Any]]:
             fitted = est.fit_many([datasets[i] for i in pending], seeds=[jobs[i].fit_seed for i in pending])
             share = (time.perf_counter() - t0) / len(pending)
             for i, m in zip(pending, fitted):
-                models[i], fit_seconds[i] = m, share
-            pending = []
+                models[i], fit_seconds[i], batch_of[i] = m, share, len(pending)
+            return
         except Exception as exc:  # noqa: BLE001
             from .._errors import ConfigError
 
@@ -275,28 +357,16 @@ def run_unit(jobs: list[Job], settings: RunSettings) -> list[dict[str, Any]]:
                 for i in pending:
                     rows[i] = _failed_row(jobs[i], exc, started, (time.perf_counter() - t0) / len(pending), "fit",
                                           {"batch_size": len(pending)})
-                pending = []
+                return
             # otherwise fall through: fit the members one by one to isolate the failing dataset
     for i in pending:
         t0 = time.perf_counter()
         try:
             est = _estimator(jobs[i], settings)
             models[i] = est.fit_many([datasets[i]], seeds=[jobs[i].fit_seed])[0]
-            fit_seconds[i] = time.perf_counter() - t0
+            fit_seconds[i], batch_of[i] = time.perf_counter() - t0, 1
         except Exception as exc:  # noqa: BLE001
             rows[i] = _failed_row(jobs[i], exc, started, time.perf_counter() - t0, "fit")
-
-    # ------------------------------------------------------------------ scoring
-    batch_size = len(models) if batched else 1
-    for i, model in models.items():
-        job = jobs[i]
-        t0 = time.perf_counter()
-        try:
-            rows[i] = _score(job, model, settings, started, fit_seconds[i] + data_seconds.get(i, 0.0), batch_size,
-                             t_unit)
-        except Exception as exc:  # noqa: BLE001
-            rows[i] = _failed_row(job, exc, started, fit_seconds[i] + time.perf_counter() - t0, "evaluate")
-    return [rows[i] for i in range(len(jobs))]
 
 
 def _score(job: Job, model, settings: RunSettings, started: str, fit_seconds: float, batch_size: int,

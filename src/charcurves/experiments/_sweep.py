@@ -22,6 +22,7 @@ from .._errors import ConfigError
 from ._executors import Progress, StopSignals, SweepInterrupted, ray_address, run_pool, run_ray
 from ._models import write_row_model
 from ._runner import Job, RunSettings, run_unit
+from ._units import plan_units
 from ._store import ResultsStore, _jsonable
 
 __all__ = ["Sweep", "SweepReport", "paper_grid", "quick_grid", "PAPER_SNR_DB", "QUICK_SNR_DB", "dataset_seed",
@@ -289,47 +290,6 @@ class Sweep:
         out.sort(key=lambda j: (self.systems.index(j.system), order[j.snr_db], self.methods.index(j.method),
                                 j.realization))
         return out
-
-
-def plan_units(jobs: Sequence[Job], *, batch: str | int = "level", max_batch: int | None = None) -> list[list[Job]]:
-    """Group jobs into units of work: neural jobs of one (system, variant, method, noise target, preset, config,
-    tag) and record length are batched (``batch="level"``: per SNR level; ``"all"``: across levels; an int: that
-    many realisations at most; ``"none"``: no batching), other methods run one job per unit.
-
-    Examples
-    --------
-    >>> from charcurves.experiments import Sweep, plan_units
-    >>> [len(u) for u in plan_units(Sweep(methods=["parametric", "nn-cc"], snr_db=[20], realizations=3).jobs())]
-    [1, 1, 1, 3]
-    """
-    from ..fitting import METHODS
-
-    positive_int = isinstance(batch, int) and not isinstance(batch, bool) and batch >= 1
-    if batch not in ("level", "all", "none") and not positive_int:
-        raise ConfigError(f"batch must be 'level', 'all', 'none' or a positive int, got {batch!r}")
-    cap = max_batch if max_batch is not None else (batch if isinstance(batch, int) else None)
-    groups: dict[tuple, list[Job]] = {}
-    order: list[tuple] = []
-    for j in jobs:
-        neural = METHODS.get(j.method, {}).get("representation") == "neural"
-        if not neural or batch == "none":
-            k = ("single",) + j.key
-        else:
-            k = (j.system, j.variant, j.method, j.noise_on, j.preset, j.config, j.tag, j.n_points)
-            if batch != "all":
-                k = k + (j.snr_db,)
-        if k not in groups:
-            groups[k] = []
-            order.append(k)
-        groups[k].append(j)
-    units = []
-    for k in order:
-        g = groups[k]
-        if cap is None:
-            units.append(g)
-        else:
-            units.extend(g[i:i + int(cap)] for i in range(0, len(g), int(cap)))
-    return units
 
 
 @dataclasses.dataclass

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import CharCurvesError, ConfigError
+from .._errors import ConfigError
 
 __all__ = [
     "VALIDATION_RANGES",
@@ -211,16 +211,21 @@ def make_validation_cases(system, n_cases: int = 10, *, seed: int = 0, box: Mapp
     t_eval = np.linspace(0.0, t_end, n_points)
     cases: list[ValidationCase] = []
     attempts = 0
+    chunk = 16
     while len(cases) < int(n_cases) and attempts < int(max_attempts):
-        attempts += 1
-        draw = {k: round(float(rng.uniform(*ranges[k])), decimals) for k in _DRAW_ORDER}
-        try:
-            tr = system.simulate(t_eval=t_eval, **draw)
-        except CharCurvesError:
-            continue
-        if _inside(tr.x, tr.v, box):
-            cases.append(ValidationCase(draw["x0"], draw["v0"], draw["A"], draw["Omega"], t_end, n_points,
-                                        np.asarray(tr.x), np.asarray(tr.v)))
+        # draws are simulated a chunk at a time (a system may integrate them stacked: Duffing), and taken
+        # in draw order: the attempts are those of drawing one at a time
+        draws = [{k: round(float(rng.uniform(*ranges[k])), decimals) for k in _DRAW_ORDER}
+                 for _ in range(min(chunk, int(max_attempts) - attempts))]
+        for draw, run in zip(draws, system.simulate_many(t_eval, draws)):
+            attempts += 1
+            if run is not None and _inside(run[0], run[1], box):
+                cases.append(ValidationCase(draw["x0"], draw["v0"], draw["A"], draw["Omega"], t_end, n_points,
+                                            np.asarray(run[0]), np.asarray(run[1])))
+                if len(cases) == int(n_cases):
+                    break
+        rate = len(cases) / max(attempts, 1)
+        chunk = int(min(64, max(8, math.ceil(1.5 * (int(n_cases) - len(cases)) / max(rate, 0.05)))))
     if warn and len(cases) < int(n_cases):
         warnings.warn(f"only {len(cases)} of {n_cases} validation cases of {name} stayed inside the training box "
                       f"in {max_attempts} attempts; raise max_attempts for more", UserWarning, stacklevel=2)
@@ -408,9 +413,10 @@ def evaluate_forward(model, system, cases, *, eps: float = 0.2, box_margin: floa
     rtol = float(system.rtol if rtol is None else rtol)
     atol = float(system.atol if atol is None else atol)
     deadline = None if time_budget is None else time.monotonic() + float(time_budget)
+    batch = _batched_runs(model, cases, time_budget, max_failed, method, rtol, atol, case_time_budget, sim_box)
     results: list[CaseResult] = []
     n_failed = 0
-    for case in cases:
+    for n_case, case in enumerate(cases):
         t = case.t_eval
         out_of_time = deadline is not None and time.monotonic() >= deadline
         if out_of_time or (max_failed is not None and n_failed >= max_failed):
@@ -429,14 +435,15 @@ def evaluate_forward(model, system, cases, *, eps: float = 0.2, box_margin: floa
             budget = max(0.01, min(budget, deadline - time.monotonic()))
         t0 = time.perf_counter()
         try:
-            res = simulate_model(model, t, case.x0, case.v0, case.forcing(), method=method, rtol=rtol, atol=atol,
-                                 time_budget=budget, box=sim_box)
+            res = batch[n_case] if batch is not None else \
+                simulate_model(model, t, case.x0, case.v0, case.forcing(), method=method, rtol=rtol, atol=atol,
+                               time_budget=budget, box=sim_box)
         except Exception as exc:  # a model whose curves cannot be evaluated: record, never stop
             results.append(CaseResult(case, "solver_failed", f"{type(exc).__name__}: {exc}", float("nan"), False,
                                       float("nan"), float("nan"), float("nan"), time.perf_counter() - t0))
             n_failed += 1
             continue
-        seconds = time.perf_counter() - t0
+        seconds = res.seconds if batch is not None else time.perf_counter() - t0
         n = len(res.x)
         xs = np.asarray(res.x, dtype=float)
         valid = n > 0 and np.isfinite(xs).all()
@@ -454,3 +461,26 @@ def evaluate_forward(model, system, cases, *, eps: float = 0.2, box_margin: floa
         results.append(CaseResult(case, res.status, res.message, float(t_sep), censored, float(rmse_x),
                                   float(rmse_v), float(res.t_end_reached), seconds))
     return ForwardEvaluation(results, float(eps), None if box is None else dict(box))
+
+
+def _batched_runs(model, cases, time_budget, max_failed, method, rtol, atol, case_time_budget, sim_box):
+    """The model's runs of every case at once (:func:`charcurves.simulate.simulate_model_batch`), or None
+    where cases are run one at a time: a job's time budget or a cap on failed cases (they stop runs early),
+    cases without their true trajectory or on different horizons, or curves that fail to evaluate."""
+    from ..simulate import simulate_model_batch
+
+    cases = list(cases)
+    if len(cases) < 2 or time_budget is not None or max_failed is not None or any(c.x_true is None for c in cases):
+        return None
+    if len({(c.t_end, c.n_points) for c in cases}) > 1:
+        return None
+    A = np.array([c.A for c in cases])
+    W = np.array([c.Omega for c in cases])
+    try:
+        return simulate_model_batch(model, cases[0].t_eval, [c.x0 for c in cases], [c.v0 for c in cases],
+                                    lambda t: A * np.cos(W * t), method=method, rtol=float(rtol), atol=float(atol),
+                                    time_budget=float(case_time_budget), box=sim_box,
+                                    run_forcings=[c.forcing() for c in cases])
+    except Exception:  # noqa: BLE001 - curves that cannot be evaluated: one at a time, each run records why
+        return None
+

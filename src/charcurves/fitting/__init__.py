@@ -31,6 +31,7 @@ from ._methods import DEFAULT_BASIS as DEFAULT_BASIS
 from ._methods import METHODS as METHODS
 from ._methods import parse_basis_option as parse_basis_option
 from ._methods import parse_symmetry as parse_symmetry
+from ._methods import shared_fit_base as shared_fit_base
 from ._model import FORMAT_VERSION as FORMAT_VERSION
 from ._model import MODEL_SCHEMA as MODEL_SCHEMA
 from ._model import FittedModel as FittedModel
@@ -44,6 +45,7 @@ from ._output_error import free_run_diagnostics as free_run_diagnostics
 from ._output_error import output_error_fit as output_error_fit
 from ._output_error import refine_output_error as refine_output_error
 from ._oe_report import summary_lines as summary_lines
+from ._pipeline import fit_with_post_sr as fit_with_post_sr
 from ._pipeline import raw_fit as raw_fit
 from ._plots import figure_png as figure_png
 from ._plots import plot_curves as plot_curves

@@ -17,7 +17,7 @@ from .._errors import ConfigError
 from ..curves import SYMMETRY_NAMES, Basis, Neural, Polynomial, SparseLibrary, Symbolic
 
 __all__ = ["METHODS", "parse_symmetry", "parse_basis_option", "DEFAULT_BASIS", "DEFAULT_GENERAL_BASIS",
-           "method_curve", "check_method_options", "POLY_OPTIONS", "SINDY_OPTIONS"]
+           "method_curve", "check_method_options", "POLY_OPTIONS", "SINDY_OPTIONS", "shared_fit_base"]
 
 #: The paper's twelve methods as named presets of shared parts: a curve representation, whether a
 #: symmetry prior applies (odd curves unless told otherwise) and whether the learned curves are
@@ -39,6 +39,29 @@ METHODS: dict[str, dict[str, Any]] = {
     "sr-cc+refit": {"representation": "sr-cc", "symmetry": False, "post_sr": False, "refit": True},
     "parametric": {"representation": "basis", "symmetry": False, "post_sr": False},
 }
+
+def shared_fit_base(method: str) -> str | None:
+    """The method whose fit ``method`` extends, or None: X for "X+post-sr" (the same networks or
+    libraries, then distilled: :func:`charcurves.fitting.fit_with_post_sr` fits both at once), "sr-cc"
+    for "sr-cc+refit" (the same searches, then a joint refit; the engine runs a search asked twice in
+    a process once).
+
+    Examples
+    --------
+    >>> from charcurves.fitting import shared_fit_base
+    >>> shared_fit_base("nn-cc+sym+post-sr"), shared_fit_base("sr-cc+refit"), shared_fit_base("nn-cc")
+    ('nn-cc+sym', 'sr-cc', None)
+    """
+    spec = METHODS.get(method)
+    if spec is None or not (spec.get("post_sr") or spec.get("refit")):
+        return None
+
+    def core(s: dict) -> dict:
+        return {k: v for k, v in s.items() if k not in ("post_sr", "refit")}
+
+    return next((m for m, s in METHODS.items() if not (s.get("post_sr") or s.get("refit")) and core(s) == core(spec)),
+                None)
+
 
 #: The paper's Parametric basis for Duffing: f1 = a1 x', f2 = a2 x + a3 x^3.
 DEFAULT_BASIS = {"f1": ["z"], "f2": ["z", "z**3"]}

@@ -23,7 +23,7 @@ from ._methods import METHODS, check_method_options
 from ._objectives import resolve_objective
 from ._self_check import derivative_noise, self_check
 
-__all__ = ["run_pipeline", "raw_fit", "check_device", "differentiator_used"]
+__all__ = ["run_pipeline", "raw_fit", "fit_with_post_sr", "check_device", "differentiator_used"]
 
 
 def check_device(device: str) -> None:
@@ -108,7 +108,66 @@ def _fit_stage(est, records: list, seeds):
 
 
 def run_pipeline(est, records: list, seeds=None) -> list:
-    ctx = _fit_stage(est, records, seeds)
+    return _finish(est, _fit_stage(est, records, seeds), records)
+
+
+def fit_with_post_sr(plain, distilled, records, seeds=None) -> tuple[list, list]:
+    """The fits of two estimators that differ only in post-SR, from one equation-error fit.
+
+    ``plain`` fits without post-SR (e.g. method "nn-cc"), ``distilled`` with it ("nn-cc+post-sr"):
+    the networks (or libraries) they train are the same, so they are trained once and finished
+    twice. Each list equals what ``est.fit_many(records, seeds)`` returns for that estimator.
+    Where the two fit stages would differ (records that all go on to output error, whose
+    equation-error stage keeps every start unless post-SR follows), both are fitted.
+
+    Examples
+    --------
+    >>> from charcurves.fitting import CharacteristicCurves, fit_with_post_sr
+    >>> from charcurves.systems import get_system
+    >>> record = get_system("duffing").simulate()
+    >>> plain, closed = fit_with_post_sr(CharacteristicCurves(method="sindy-cc+sym"),
+    ...                                  CharacteristicCurves(method="sindy-cc+sym+post-sr"), [record])
+    >>> plain[0].method, closed[0].method, closed[0].curves["f2"].kind
+    ('sindy-cc+sym', 'sindy-cc+sym+post-sr', 'symbolic')
+    """
+    import copy
+
+    check = _post_sr_pair(plain, distilled)
+    if check:
+        raise ConfigError(f"fit_with_post_sr needs two estimators that differ only in post-SR: {check}")
+    records = list(records)
+    if any(isinstance(e.symmetry, str) and e.symmetry.strip().lower() == "auto" for e in (plain, distilled)):
+        return plain.fit_many(records, seeds), distilled.fit_many(records, seeds)  # parities detected per fit
+    ctx = _fit_stage(plain, records, seeds)
+    if all(ctx["use_oe"]) and ctx["preset"].combine == "mean":  # the two fit stages differ (see _fit_stage)
+        other = _fit_stage(distilled, records, ctx["seeds"])
+    else:
+        models = [copy.copy(m) for m in ctx["models"]]
+        for m in models:  # post-SR builds new models; the plain ones get their own info to finish
+            m.info = copy.deepcopy(m.info)
+        other = dict(ctx, models=ctx["models"], method=distilled.resolve()[3])
+        ctx = dict(ctx, models=models)
+    return _finish(plain, ctx, records), _finish(distilled, other, records)
+
+
+def _post_sr_pair(plain, distilled) -> str:
+    """Why two estimators are not a (without, with) post-SR pair; "" when they are."""
+    if plain.wants_post_sr() or not distilled.wants_post_sr():
+        return "the first must fit without post-SR and the second with it"
+    a, b = plain.get_params(deep=False), distilled.get_params(deep=False)
+    ma, mb = plain.method_name(), distilled.method_name()
+    spec_a = {k: v for k, v in METHODS.get(ma, {}).items() if k != "post_sr"}
+    spec_b = {k: v for k, v in METHODS.get(mb, {}).items() if k != "post_sr"}
+    if spec_a != spec_b:
+        return f"methods {ma!r} and {mb!r} fit different curves"
+    if spec_a.get("representation") in ("sr", "sr-cc"):
+        return "symbolic fits take their SR options in the fit itself"
+    differ = sorted(k for k in set(a) | set(b) if k not in ("method", "post_sr", "sr_options") and a.get(k) != b.get(k))
+    return f"they differ in {', '.join(differ)}" if differ else ""
+
+
+def _finish(est, ctx: dict, records: list) -> list:
+    """Post-SR, output error, the settings and the self-check of the fit stage's models."""
     models, prepared, estimated, seeds = ctx["models"], ctx["prepared"], ctx["estimated"], ctx["seeds"]
     mode, oe_settings, preset, reps = ctx["mode"], ctx["oe_settings"], ctx["preset"], ctx["reps"]
     structure, sym, method, diff, jumps = ctx["structure"], ctx["sym"], ctx["method"], ctx["diff"], ctx["jumps"]

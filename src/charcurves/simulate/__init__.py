@@ -1,5 +1,6 @@
 """Forward simulation of fitted models and of benchmark systems, with failure statuses."""
 
+from ._batch import simulate_model_batch as simulate_model_batch
 from ._curve_eval import PreparedCurve as PreparedCurve
 from ._curve_eval import prepare_curve as prepare_curve
 from ._forward import STATUSES as STATUSES

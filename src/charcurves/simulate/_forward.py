@@ -141,6 +141,10 @@ class _Output:
     def _upto(self, t: float) -> int:
         return int(np.searchsorted(self.t, t, side="right"))
 
+    def due(self, t: float) -> bool:
+        """Whether samples up to ``t`` are still to be filled."""
+        return self.filled < self.t.size and self.t[self.filled] <= t
+
     def dense(self, interp, t: float) -> None:
         end = self._upto(t)
         if end > self.filled:
@@ -255,8 +259,8 @@ class _Run:
             t_new = solver.t
             x_new, v_new = (float(u) for u in solver.y)
             self.check_state(t_new, x_new, v_new)
-            interp = solver.dense_output()
             if s != 0 and s * v_new <= 0.0:
+                interp = solver.dense_output()
                 t_lo = t_old if s * v_old > 0.0 else None
                 if t_lo is None:  # the phase began at rest: find where the motion went the right way
                     for tt in np.linspace(t_old, t_new, 10)[1:-1]:
@@ -269,7 +273,8 @@ class _Run:
                                                           xtol=1e-14, rtol=4 * np.finfo(float).eps)
                 self.out.dense(interp, t_hit)
                 return "stopped", t_hit, float(interp(t_hit)[0])
-            self.out.dense(interp, t_new)
+            if self.out.due(t_new):  # a step between two samples needs no interpolant
+                self.out.dense(solver.dense_output(), t_new)
             if solver.status == "finished":
                 return "end", t_new, x_new
             self.check_time(t_new)

@@ -3,6 +3,7 @@ split, safe evaluation, constant polishing, simplification of saturated steps, i
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from typing import Any
@@ -96,9 +97,21 @@ def split_terms(expr) -> list[tuple[float, Any]]:
 
 
 def lambdify_numpy(expr, symbols):
+    """``sympy.lambdify(symbols, expr, modules="numpy")``, remembered per (symbols, expression).
+
+    The selection evaluates the same expressions many times (every search's front, its sub-models,
+    the polishing of each candidate, SR-CC's outer iterations); building the function is what
+    costs (sympy prints and compiles it), so it is built once per process. The docstring that
+    lambdify renders by default (the expression printed a second time) is left out.
+    """
+    return _lambdify_numpy(tuple(symbols), expr)
+
+
+@functools.lru_cache(maxsize=4096)
+def _lambdify_numpy(symbols: tuple, expr):
     import sympy as sp
 
-    return sp.lambdify(symbols, expr, modules="numpy")
+    return sp.lambdify(list(symbols), expr, modules="numpy", docstring_limit=0)
 
 
 def eval_expression(expr, symbols, X) -> np.ndarray | None:
@@ -172,8 +185,11 @@ def polish_constants(expr, symbols, X, y, *, max_nfev: int = 200):
     if not consts:
         return expr, mse0
     params = sp.symbols(f"__c0:{len(consts)}")
-    template = expr.xreplace(dict(zip(consts, params)))
-    f = sp.lambdify(list(symbols) + list(params), template, modules="numpy")
+    # the template is only compiled, never shown: building it unevaluated skips sympy's
+    # canonicalisation (assumption queries on every nested tanh: most of a polish's time)
+    with sp.core.parameters.evaluate(False):
+        template = expr.xreplace(dict(zip(consts, params)))
+    f = lambdify_numpy(template, list(symbols) + list(params))
     cols = [X[:, i] for i in range(X.shape[1])]
     p0 = np.array([float(c) for c in consts])
 
@@ -186,7 +202,10 @@ def polish_constants(expr, symbols, X, y, *, max_nfev: int = 200):
         sol = least_squares(resid, p0, method="trf", x_scale="jac", max_nfev=max_nfev)
     except (ValueError, FloatingPointError, OverflowError):  # pragma: no cover - defensive
         return expr, mse0
-    new = template.xreplace({p: sp.Float(v, 15) for p, v in zip(params, sol.x)})
+    # a polish that cannot win (beyond the rounding of its constants to 15 digits) is not built
+    if not float(np.mean(resid(sol.x) ** 2)) <= mse0 * (1.0 + 1e-6):
+        return expr, mse0
+    new = expr.xreplace({c: sp.Float(v, 15) for c, v in zip(consts, sol.x)})
     vals = eval_expression(new, symbols, X)
     if vals is None:
         return expr, mse0

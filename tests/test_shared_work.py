@@ -1,0 +1,226 @@
+"""Work done once for many jobs: fits shared by a method and its +post-sr sibling, remembered SR searches,
+stacked forward runs of one model, stacked validation draws. Each must give what the work done separately
+gives (the same numbers, or the same to the solver's tolerance where runs are stacked)."""
+
+import numpy as np
+import pytest
+
+from charcurves._errors import ConfigError
+from charcurves.curves import SymbolicFittedCurve
+from charcurves.data import corrupt
+from charcurves.experiments import (
+    RunSettings,
+    Sweep,
+    evaluate_forward,
+    make_validation_cases,
+    plan_units,
+    run_unit,
+    training_box,
+)
+from charcurves.fitting import PRESETS, CharacteristicCurves, FittedModel, fit_with_post_sr, shared_fit_base
+from charcurves.simulate import prepare_model_curves, simulate_model, simulate_model_batch, sinusoidal_forcing
+from charcurves.symbolic import OperonEngine
+from charcurves.systems import get_system
+from charcurves.templates import get_template
+
+TINY = PRESETS["default"].replace(n_starts=1, adam_steps=20, lm_max_iter=3)
+
+
+def symbolic_model(f1, f2, domain=(-2, 2)):
+    curves = {"f1": SymbolicFittedCurve("f1", "x'", domain, f1), "f2": SymbolicFittedCurve("f2", "x", domain, f2)}
+    return FittedModel(get_template("separable"), "test", curves, 1.0, 0.0, 0.0)
+
+
+def _info_without_times(info):
+    if isinstance(info, dict):
+        return {k: _info_without_times(v) for k, v in info.items() if "seconds" not in k}
+    if isinstance(info, list):
+        return [_info_without_times(v) for v in info]
+    return info
+
+
+# ---------------------------------------------------------------------------- one fit, finished twice
+def test_shared_fit_base_names_the_method_each_extension_builds_on():
+    assert shared_fit_base("nn-cc+post-sr") == "nn-cc"
+    assert shared_fit_base("nn-cc+sym+post-sr") == "nn-cc+sym"
+    assert shared_fit_base("sindy-cc+sym+post-sr") == "sindy-cc+sym"
+    assert shared_fit_base("sr-cc+refit") == "sr-cc"
+    assert [shared_fit_base(m) for m in ("nn-cc", "sindy", "sindy-cc", "poly-cc", "sr", "sr-cc", "parametric")] == \
+        [None] * 7
+
+
+@pytest.mark.parametrize("base, preset", [("sindy-cc+sym", "default"), ("nn-cc", TINY)])
+def test_fit_with_post_sr_equals_the_two_fits_done_apart(duffing, base, preset):
+    system, clean = duffing
+    records = [corrupt(clean, 20, seed=k) for k in range(2)]
+    sr = {"generations": 5}
+    plain = CharacteristicCurves(method=base, preset=preset)
+    distilled = CharacteristicCurves(method=base + "+post-sr", preset=preset, sr_options=sr)
+    apart = plain.fit_many(records, seeds=[3, 4]), distilled.fit_many(records, seeds=[3, 4])
+    shared = fit_with_post_sr(plain, distilled, records, seeds=[3, 4])
+    z = np.linspace(-1.5, 1.5, 301)
+    for a_list, b_list in zip(apart, shared):
+        for a, b in zip(a_list, b_list):
+            assert a.method == b.method and a.loss == b.loss and a.gain == b.gain
+            for name in a.curves:
+                np.testing.assert_array_equal(a.curves[name](z), b.curves[name](z))
+            assert _info_without_times(a.info) == _info_without_times(b.info)
+    assert [m.curves["f2"].kind for m in shared[1]] == ["symbolic", "symbolic"]
+    assert all(m.curves["f2"].kind != "symbolic" for m in shared[0])
+
+
+def test_fit_with_post_sr_refuses_estimators_that_are_not_a_pair():
+    with pytest.raises(ConfigError, match="differ only in post-SR: the first must fit without post-SR"):
+        fit_with_post_sr(CharacteristicCurves(method="nn-cc+post-sr"), CharacteristicCurves(method="nn-cc"), [])
+    with pytest.raises(ConfigError, match="fit different curves"):
+        fit_with_post_sr(CharacteristicCurves(method="nn-cc"), CharacteristicCurves(method="nn-cc+sym+post-sr"), [])
+    with pytest.raises(ConfigError, match="they differ in random_state"):
+        fit_with_post_sr(CharacteristicCurves(method="nn-cc"),
+                         CharacteristicCurves(method="nn-cc+post-sr", random_state=1), [])
+
+
+def test_plan_units_puts_a_method_and_its_extension_on_the_same_records_together():
+    jobs = Sweep(methods=["nn-cc", "nn-cc+post-sr", "sr-cc", "sr-cc+refit", "parametric"], snr_db=[40, 20],
+                 realizations=3).jobs()
+    units = plan_units(jobs)
+    neural = [u for u in units if u[0].method == "nn-cc"]
+    assert len(neural) == 2  # one per level: three realisations of each of the two methods
+    for u in neural:
+        assert sorted(j.method for j in u) == ["nn-cc"] * 3 + ["nn-cc+post-sr"] * 3 and len({j.snr_db for j in u}) == 1
+    sr = [u for u in units if u[0].method == "sr-cc"]
+    assert len(sr) == 6 and all([j.method for j in u] == ["sr-cc", "sr-cc+refit"] for u in sr)
+    assert all(u[0].noise_seed == u[1].noise_seed for u in sr)
+    assert sum(len(u) for u in units) == len(jobs) and sorted(j.key for u in units for j in u) == \
+        sorted(j.key for j in jobs)
+    # a cap counts records: both methods of a record stay in one unit
+    capped = [u for u in plan_units(jobs, max_batch=2) if u[0].method == "nn-cc"]
+    assert [len(u) for u in capped] == [4, 2, 4, 2]
+    assert all({j.realization for j in u if j.method == "nn-cc"} == {j.realization for j in u
+                                                                       if j.method == "nn-cc+post-sr"} for u in capped)
+    # alone, an extension runs as before
+    alone = plan_units(Sweep(methods=["nn-cc+post-sr"], snr_db=[20], realizations=2).jobs())
+    assert [[j.method for j in u] for u in alone] == [["nn-cc+post-sr", "nn-cc+post-sr"]]
+
+
+def test_a_shared_unit_gives_the_rows_of_separate_units():
+    jobs = Sweep(methods=["sindy-cc+sym", "sindy-cc+sym+post-sr", "sr-cc", "sr-cc+refit"], snr_db=[20],
+                 realizations=1, method_options={m: {"sr_options": {"generations": 5}} for m in
+                                                 ("sindy-cc+sym+post-sr", "sr-cc", "sr-cc+refit")}).jobs()
+    settings = RunSettings(forward_cases=0)
+    together = {j.method: r for u in plan_units(jobs) for j, r in zip(u, run_unit(u, settings))}
+    apart = {j.method: run_unit([j], settings)[0] for j in jobs}
+    assert set(together) == set(apart) == {j.method for j in jobs}
+    for m in together:
+        a, b = together[m], apart[m]
+        assert a["status"] == b["status"] == "ok"
+        assert (a["rmse_f1"], a["rmse_f2"], a["loss"]) == (b["rmse_f1"], b["rmse_f2"], b["loss"])
+        assert a["extra"]["curves"] == b["extra"]["curves"]
+    # the refit differs from SR-CC in its coefficients only, and each row says what its method costs alone
+    assert together["sr-cc+refit"]["rmse_f1"] != together["sr-cc"]["rmse_f1"]
+    assert together["sr-cc+refit"]["extra"]["fit_seconds"] >= together["sr-cc"]["extra"]["fit_seconds"]
+    assert together["sindy-cc+sym+post-sr"]["extra"]["fit_seconds"] > together["sindy-cc+sym"]["extra"]["fit_seconds"]
+
+
+# ---------------------------------------------------------------------------- remembered searches
+class CountingOperon(OperonEngine):
+    calls = 0
+
+    def _search(self, *args, **kwargs):
+        type(self).calls += 1
+        return super()._search(*args, **kwargs)
+
+
+def test_a_search_asked_twice_runs_once_and_gives_the_same_result():
+    z = np.linspace(-2, 2, 200)
+    engine = CountingOperon(generations=5)
+    first = engine.fit(z[:, None], z**3 - z, ["z"], random_state=11)
+    again = engine.fit(z[:, None], z**3 - z, ["z"], random_state=11)
+    assert CountingOperon.calls == 1
+    assert again.expression == first.expression and again.front == first.front and again.mse == first.mse
+    again.info["mutated"] = True  # each caller gets its own info
+    assert "mutated" not in engine.fit(z[:, None], z**3 - z, ["z"], random_state=11).info
+    engine.fit(z[:, None], z**3 - z, ["z"], random_state=12)  # another seed, other data, other settings: new
+    engine.fit(z[:, None], z**3 - 1.01 * z, ["z"], random_state=11)
+    CountingOperon(generations=6).fit(z[:, None], z**3 - z, ["z"], random_state=11)
+    assert CountingOperon.calls == 4
+
+
+# ---------------------------------------------------------------------------- stacked runs of one model
+def test_prepared_curves_evaluate_arrays_as_their_scalar_form(duffing):
+    system, clean = duffing
+    nn = CharacteristicCurves(method="nn-cc+sym", preset=TINY).fit(corrupt(clean, 20, seed=0)).model_
+    z = np.linspace(-3.0, 3.0, 97)  # beyond the tables, where the exact curve is used
+    for model in (nn, symbolic_model("0.3*z", "z**3 - z")):
+        for c in prepare_model_curves(model):
+            np.testing.assert_allclose(c.values(z), [c.smooth(float(u)) for u in z], rtol=1e-12, atol=1e-12)
+            assert c.vector_ops > 0
+
+
+def test_stacked_runs_match_runs_one_at_a_time():
+    system = get_system("duffing")
+    model = symbolic_model("0.3*z", "z**3 - z")  # the true curves: only the solver differs
+    t = np.linspace(0.0, 30.0, 601)
+    A, W = np.array([0.5, 0.3, 0.45]), np.array([1.2, 1.0, 1.3])
+    x0, v0 = [0.5, -0.3, 0.1], [-0.5, 0.2, 0.0]
+    runs = simulate_model_batch(model, t, x0, v0, lambda s: A * np.cos(W * s), rtol=1e-10, atol=1e-12)
+    assert all(r.status == "ok" and r.details["batched"] for r in runs)
+    for i, r in enumerate(runs):
+        one = simulate_model(model, t, x0[i], v0[i], sinusoidal_forcing(A[i], W[i]), rtol=1e-10, atol=1e-12)
+        assert np.max(np.abs(r.x - one.x)) < 1e-6 and np.max(np.abs(r.v - one.v)) < 1e-6
+
+
+def test_stacked_runs_keep_each_runs_own_failure():
+    model = symbolic_model("-0.5*z", "-z**3")  # negative damping, softening spring: runs away from 1.0, stays at 0
+    t = np.linspace(0.0, 100.0, 1000)
+    runs = simulate_model_batch(model, t, [0.0, 1.0, 0.5], [0.0, 1.0, 0.0], lambda s: np.zeros(3), max_abs=1e3,
+                                box={"x": (-2.0, 2.0)})
+    assert [r.status for r in runs] == ["ok", "left_box", "left_box"]
+    assert runs[0].x.size == t.size and np.all(runs[0].x == 0.0)
+    assert "x = " in runs[1].message and "left [-2, 2]" in runs[1].message
+    for r in runs[1:]:
+        assert 0 < r.t_end_reached < 100 and r.x.size < t.size and np.all(np.abs(r.x) <= 2.0 + 1e-9)
+        assert r.x.size <= np.searchsorted(t, r.t_end_reached, side="right")  # samples up to the last step inside
+    blown = simulate_model_batch(model, t, [0.0, 1.0], [0.0, 1.0], lambda s: np.zeros(2), max_abs=1e3)
+    assert [r.status for r in blown] == ["ok", "diverged"] and "larger than 1000" in blown[1].message
+
+
+def test_models_with_a_jump_or_long_closed_forms_run_one_at_a_time():
+    t = np.linspace(0.0, 10.0, 201)
+    coulomb = symbolic_model("0.3*z + 0.8*sign(z)", "z")
+    runs = simulate_model_batch(coulomb, t, [0.1, 0.2], [0.0, 0.0], lambda s: np.array([1.0, 1.0]) * np.cos(s))
+    assert [r.details["batched"] for r in runs] == [False, False] and [r.status for r in runs] == ["ok", "ok"]
+    long_form = symbolic_model(" + ".join(f"{0.01 * k}*z**{k}" for k in range(1, 12)), "z**3 - z")
+    runs = simulate_model_batch(long_form, t, [0.1, 0.2], [0.0, 0.0], lambda s: np.array([0.5, 0.5]) * np.cos(s))
+    assert [r.details["batched"] for r in runs] == [False, False]
+
+
+def test_forward_validation_stacked_gives_the_statuses_and_separation_times_of_one_at_a_time(monkeypatch):
+    import charcurves.experiments._validation as validation
+
+    system = get_system("duffing")
+    cases = make_validation_cases(system, 4, seed=5)
+    for model in (symbolic_model("0.3*z", "z**3 - z"), symbolic_model("0.32*z", "1.05*z**3 - z"),
+                  symbolic_model("0.3*z", "-z**3 - 2*z")):
+        stacked = evaluate_forward(model, system, cases)
+        monkeypatch.setattr(validation, "_batched_runs", lambda *a, **k: None)
+        alone = evaluate_forward(model, system, cases)
+        monkeypatch.undo()
+        assert [c.status for c in stacked.cases] == [c.status for c in alone.cases]
+        np.testing.assert_allclose([c.t_sep for c in stacked.cases], [c.t_sep for c in alone.cases], atol=0.05)
+
+
+# ---------------------------------------------------------------------------- stacked validation draws
+def test_stacked_duffing_draws_give_the_cases_of_single_draws():
+    system = get_system("duffing")
+    cases = make_validation_cases(system, 4, seed=9)
+    box = training_box(system.simulate())
+    first20 = cases[0].t_eval <= 20.0
+    for c in cases:  # each true trajectory as the system's own run of the case, to the solver's accuracy
+        tr = system.simulate(t_eval=c.t_eval, x0=c.x0, v0=c.v0, A=c.A, Omega=c.Omega)
+        assert np.max(np.abs(tr.x[first20] - c.x_true[first20])) < 1e-6
+        assert np.max(np.abs(tr.x - c.x_true)) < 0.05
+        assert box["x"][0] <= c.x_true.min() and c.x_true.max() <= box["x"][1]
+    # loose tolerances (the scripts' variant): one draw at a time, bit for bit the system's own run
+    scripts = get_system("duffing", "scripts")
+    c = make_validation_cases(scripts, 1, seed=9, t_end=20.0, n_points=201)[0]
+    np.testing.assert_array_equal(scripts.simulate(t_eval=c.t_eval, x0=c.x0, v0=c.v0, A=c.A, Omega=c.Omega).x, c.x_true)
