@@ -58,27 +58,48 @@ def miw_study(ctx: _Context, extras: _Extras) -> None:
 
     truth = get_system("duffing", ctx.sweep.variant_of("duffing")).true_curves()
     k, r = int(ctx.sizes["miw_seeds"]), int(ctx.sizes["miw_realizations"])
-    for method in [m for m in MIW_METHODS if m in ctx.methods]:
-        sig = {"method": method, "preset": ctx.preset, "seeds": k, "realizations": r, "base_seed": ctx.base_seed,
-               "n_points": ctx.n_points, "t_end": ctx.t_end}
-        if extras.get(f"miw:{method}:{ctx.preset}", sig) is not None:
-            continue
-        _log(ctx.progress, f"MIW ensembles of {method}: {k} seeds on one dataset, {r} noise realisations (20 dB)")
+    methods = [m for m in MIW_METHODS if m in ctx.methods]
+    sigs = {m: {"method": m, "preset": ctx.preset, "seeds": k, "realizations": r, "base_seed": ctx.base_seed,
+                "n_points": ctx.n_points, "t_end": ctx.t_end} for m in methods}
+    todo = [m for m in methods if extras.get(f"miw:{m}:{ctx.preset}", sigs[m]) is None]
+    # a method and its +post-sr sibling fit the same networks (same data, same seeds): trained once
+    from ..fitting import shared_fit_base
+
+    pairs = {m: b for m in todo if (b := shared_fit_base(m)) in todo}
+    for method in [m for m in todo if m not in pairs]:
+        partner = next((m for m, b in pairs.items() if b == method), None)
+        names = [method] + ([partner] if partner else [])
+        _log(ctx.progress, f"MIW ensembles of {' and '.join(names)}: {k} seeds on one dataset, {r} noise "
+                           "realisations (20 dB)")
         t0 = time.perf_counter()
-        est = _estimator(ctx, "duffing", method)
         _, data0 = _dataset(ctx, "duffing", 20.0, 0)
-        seed_models = est.fit_many([data0] * k, seeds=list(range(k)))
-        z, res = zip(*(curve_residuals(m, data0, truth, "f2") for m in seed_models))
-        m_seeds = miw(list(z), list(res))
+        seed_fits = _miw_fits(ctx, names, [data0] * k, list(range(k)))
         t1 = time.perf_counter()
         datasets = [_dataset(ctx, "duffing", 20.0, i)[1] for i in range(r)]
-        real_models = est.fit_many(datasets, seeds=list(range(r)))
-        z2, res2 = zip(*(curve_residuals(m, d, truth, "f2") for m, d in zip(real_models, datasets)))
-        m_real = miw(list(z2), list(res2))
-        extras.put(f"miw:{method}:{ctx.preset}", sig, {
-            "seeds": {"miw_range": m_seeds.miw_range, "miw_99": m_seeds.miw_99, "n": k, "seconds": t1 - t0},
-            "realizations": {"miw_range": m_real.miw_range, "miw_99": m_real.miw_99, "n": r,
-                             "seconds": time.perf_counter() - t1}})
+        real_fits = _miw_fits(ctx, names, datasets, list(range(r)))
+        t2 = time.perf_counter()
+        for name in names:
+            z, res = zip(*(curve_residuals(m, data0, truth, "f2") for m in seed_fits[name]))
+            m_seeds = miw(list(z), list(res))
+            z2, res2 = zip(*(curve_residuals(m, d, truth, "f2") for m, d in zip(real_fits[name], datasets)))
+            m_real = miw(list(z2), list(res2))
+            # seconds: the whole ensemble's, shared between the methods trained together
+            extras.put(f"miw:{name}:{ctx.preset}", sigs[name], {
+                "seeds": {"miw_range": m_seeds.miw_range, "miw_99": m_seeds.miw_99, "n": k,
+                          "seconds": (t1 - t0) / len(names)},
+                "realizations": {"miw_range": m_real.miw_range, "miw_99": m_real.miw_99, "n": r,
+                                 "seconds": (t2 - t1) / len(names)}})
+
+
+def _miw_fits(ctx: _Context, names: list[str], records: list, seeds: list[int]) -> dict[str, list]:
+    """The fits of one method, or of a method and its +post-sr sibling from one training."""
+    from ..fitting import fit_with_post_sr
+
+    if len(names) == 1:
+        return {names[0]: _estimator(ctx, "duffing", names[0]).fit_many(records, seeds=seeds)}
+    plain, distilled = fit_with_post_sr(_estimator(ctx, "duffing", names[0]), _estimator(ctx, "duffing", names[1]),
+                                        records, seeds=seeds)
+    return {names[0]: plain, names[1]: distilled}
 
 
 #: Appendix C variations tried on the run's preset (a few of the paper's rows that are quick here).

@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 from ..curves import SymbolicFittedCurve
-from ..symbolic import distill_curve_front, expression_complexity, make_engine, operators_option
+from ..symbolic import distill_curve_front, expression_complexity, operators_option, post_sr_engine
 from ..templates import sticking_mask
 from ._model import FittedModel
 
@@ -96,7 +96,8 @@ def distill_model(model, *, sr_options: dict | None = None, random_state: int = 
     ----------
     model : FittedModel
     sr_options : dict, optional
-        See :func:`charcurves.symbolic.make_engine` ("operators": "auto" picks per curve).
+        See :func:`charcurves.symbolic.make_engine` ("operators": "auto" picks per curve); the
+        post-SR defaults (:data:`charcurves.symbolic.POST_SR_OPTIONS`) fill what is not given.
     random_state : int
         Seed; curve i uses ``random_state + 1000 i``.
     n : int
@@ -126,7 +127,7 @@ def distill_model(model, *, sr_options: dict | None = None, random_state: int = 
     {'f1': 0.3*z, 'f2': z**3 - z}
     """
     t0 = time.perf_counter()
-    engine = make_engine(sr_options)
+    engine = post_sr_engine(sr_options)
     ops = operators_option(sr_options)
     curves, fronts = {}, {}
     for i, (name, c) in enumerate(model.curves.items()):

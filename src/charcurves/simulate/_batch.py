@@ -28,13 +28,14 @@ from ._forward import SimulationResult, prepare_model_curves, simulate_model, so
 
 __all__ = ["simulate_model_batch", "MAX_BATCH_OPS"]
 
-#: Runs are stacked only when the two curves' vectorised evaluations take at most this many numpy
+#: Runs are stacked when the two curves' vectorised evaluations take at most this many numpy
 #: operations together (:attr:`PreparedCurve.vector_ops`: tables 12 each, closed forms their
 #: operation count): on ten runs each operation costs about as much as a scalar evaluation of a
-#: run, so long closed forms (degree-10 polynomials) are faster one run at a time. Measured on
-#: ten Duffing validation cases of 80 s (2-core machine, one thread): a Parametric model 0.16 s
-#: stacked against 0.43 s one by one, NN-CC+sym (tables) 0.33 s against 0.46 s, Poly-CC (degree
-#: 10) 0.64-0.80 s against 0.29-0.63 s.
+#: run, so long closed forms (degree-10 polynomials) are faster one run at a time (tabulating them
+#: does not help: stacked, their runs took 0.55-0.82 s against 0.28-0.55 s). Measured on ten
+#: Duffing validation cases of 80 s (2-core machine, one thread): a Parametric model 0.16 s stacked
+#: against 0.43 s one by one, NN-CC+sym (tables) 0.33 s against 0.46 s, Poly-CC (degree 10,
+#: exact) 0.64-0.80 s stacked against 0.29-0.63 s one by one.
 MAX_BATCH_OPS = 24
 
 

@@ -23,7 +23,7 @@ Examples
 """
 
 from ._decompose import decompose
-from ._distill import TRIG_TURNS, distill_curve, distill_curve_front, has_jump, turns
+from ._distill import POST_SR_OPTIONS, TRIG_TURNS, distill_curve, distill_curve_front, has_jump, post_sr_engine, turns
 from ._engine import (
     DEFAULT_SR_OPTIONS,
     OPERATORS,
@@ -43,6 +43,7 @@ __all__ = [
     "DEFAULT_SR_OPTIONS",
     "OPERATORS",
     "POLY_OPERATORS",
+    "POST_SR_OPTIONS",
     "SELECTION_CRITERIA",
     "SR_OPTION_KEYS",
     "TRIG_TURNS",
@@ -63,6 +64,7 @@ __all__ = [
     "operators_option",
     "parse_infix",
     "polish_constants",
+    "post_sr_engine",
     "select_model",
     "split_terms",
 ]

@@ -75,7 +75,8 @@ from typing import Any
 import numpy as np
 
 from .._errors import ConfigError
-from ._expressions import desaturate, eval_expression, expression_complexity, parse_infix, polish_constants, tidy
+from ._expressions import (desaturate, eval_expression, expression_complexity, parse_infix, polish_constants,
+                           reevaluate, tidy)
 from ._selection import (AUTO_SELECTION, SELECTION_CRITERIA, Candidate, FrontEntry, SRResult, candidates_from, pareto,
                          select_model)
 
@@ -116,6 +117,7 @@ DEFAULT_SR_OPTIONS: dict[str, Any] = {
     "max_size": 20,
     "operators": "auto",
     "selection": "auto",
+    "max_points": 400,
 }
 SR_OPTION_KEYS = tuple(DEFAULT_SR_OPTIONS)
 _ENGINES = ("operon", "pysr")
@@ -180,7 +182,7 @@ class SymbolicRegressionEngine(abc.ABC):
                  populations: int = DEFAULT_SR_OPTIONS["populations"],
                  population_size: int = DEFAULT_SR_OPTIONS["population_size"],
                  max_size: int = DEFAULT_SR_OPTIONS["max_size"], operators: Sequence[str] = POLY_OPERATORS,
-                 selection: str = DEFAULT_SR_OPTIONS["selection"], max_points: int = 400):
+                 selection: str = DEFAULT_SR_OPTIONS["selection"], max_points: int = DEFAULT_SR_OPTIONS["max_points"]):
         for key, val, lo in (("generations", generations, 1), ("populations", populations, 1),
                              ("population_size", population_size, 2), ("max_size", max_size, 3),
                              ("max_points", max_points, 10)):
@@ -199,7 +201,7 @@ class SymbolicRegressionEngine(abc.ABC):
     def __repr__(self) -> str:
         return (f"{type(self).__name__}(generations={self.generations}, populations={self.populations}, "
                 f"population_size={self.population_size}, max_size={self.max_size}, "
-                f"operators={self.operators}, selection={self.selection!r})")
+                f"operators={self.operators}, selection={self.selection!r}, max_points={self.max_points})")
 
     @abc.abstractmethod
     def _search(self, X: np.ndarray, y: np.ndarray, symbols: list, operators: tuple[str, ...],
@@ -260,6 +262,9 @@ class SymbolicRegressionEngine(abc.ABC):
         mean_expr = sp.Float(float(np.mean(y)), 15)
         cands.append(Candidate(mean_expr, var_y, 1, 1, frozenset([sp.Integer(1)])))
         front = pareto(cands)
+        for c in front:  # candidates were polished without sympy's evaluation (see polish_constants)
+            if c.raw:
+                c.expression, c.raw = reevaluate(c.expression), False
         pick = select_model(front, self.selection, X.shape[0], var_y, context)
         criterion = AUTO_SELECTION.get(context, "knee") if self.selection == "auto" else self.selection
         chosen = front[pick]
@@ -459,7 +464,8 @@ def make_engine(sr_options: dict | None = None) -> SymbolicRegressionEngine:
         Keys (all optional; :data:`DEFAULT_SR_OPTIONS`): ``engine`` ("operon" | "pysr"),
         ``generations``, ``populations``, ``population_size``, ``max_size``, ``operators``
         ("auto" or a list of :data:`OPERATORS`; "auto" lets the caller choose per fit, the
-        engine's own default being + - *), ``selection`` (:data:`SELECTION_CRITERIA`).
+        engine's own default being + - *), ``selection`` (:data:`SELECTION_CRITERIA`),
+        ``max_points`` (the search sees at most this many evenly spaced points).
 
     Raises
     ------

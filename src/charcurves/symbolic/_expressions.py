@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["expression_complexity", "numeric_atoms", "n_constants", "canonical", "split_terms", "lambdify_numpy",
-           "eval_expression", "polish_constants", "desaturate", "tidy", "parse_infix", "INFIX_FUNCS"]
+           "eval_expression", "polish_constants", "reevaluate", "desaturate", "tidy", "parse_infix", "INFIX_FUNCS"]
 
 def expression_complexity(expr) -> int:
     """Size of an expression tree, counted as a search without ``pow`` would build it.
@@ -147,7 +147,26 @@ def eval_expression(expr, symbols, X) -> np.ndarray | None:
     return out
 
 
-def polish_constants(expr, symbols, X, y, *, max_nfev: int = 200):
+def reevaluate(expr):
+    """``expr`` rebuilt bottom-up with sympy's evaluation (the canonical form of an expression built
+    with ``evaluate(False)``).
+
+    Examples
+    --------
+    >>> import sympy as sp
+    >>> from charcurves.symbolic._expressions import reevaluate
+    >>> z = sp.Symbol("z")
+    >>> with sp.core.parameters.evaluate(False):
+    ...     raw = sp.Float(2.0) * sp.tanh(sp.Float(-3.0) * z)
+    >>> reevaluate(raw)
+    -2.0*tanh(3.0*z)
+    """
+    if not expr.args:
+        return expr
+    return expr.func(*[reevaluate(a) for a in expr.args])
+
+
+def polish_constants(expr, symbols, X, y, *, max_nfev: int = 200, canonical: bool = True):
     """Least-squares refinement of every numeric constant of ``expr`` on (X, y).
 
     Parameters
@@ -157,6 +176,14 @@ def polish_constants(expr, symbols, X, y, *, max_nfev: int = 200):
         The variables, in the column order of X.
     X : (N, d) array
     y : (N,) array
+
+    max_nfev : int
+        Most evaluations of the residuals.
+    canonical : bool
+        False: the polished expression is built without sympy's evaluation (its values are the
+        same; :func:`reevaluate` gives the canonical form). Building it canonically is most of a
+        polish's cost for nested expressions, so the selection polishes every candidate this way
+        and makes canonical only the members of its Pareto front.
 
     Returns
     -------
@@ -205,7 +232,8 @@ def polish_constants(expr, symbols, X, y, *, max_nfev: int = 200):
     # a polish that cannot win (beyond the rounding of its constants to 15 digits) is not built
     if not float(np.mean(resid(sol.x) ** 2)) <= mse0 * (1.0 + 1e-6):
         return expr, mse0
-    new = expr.xreplace({c: sp.Float(v, 15) for c, v in zip(consts, sol.x)})
+    with sp.core.parameters.evaluate(bool(canonical)):
+        new = expr.xreplace({c: sp.Float(v, 15) for c, v in zip(consts, sol.x)})
     vals = eval_expression(new, symbols, X)
     if vals is None:
         return expr, mse0

@@ -119,6 +119,8 @@ class Candidate:
     complexity: int
     n_constants: int
     key: Any
+    #: the expression was built without sympy's evaluation (a polished candidate): see ``reevaluate``
+    raw: bool = False
 
 
 def candidates_from(exprs, symbols, X, y) -> list[Candidate]:
@@ -176,9 +178,9 @@ def candidates_from(exprs, symbols, X, y) -> list[Candidate]:
     # unpolished, a slightly wrong k can make a nested variant look better than the plain form
     for cand in out:
         if has_inner_constants(cand.expression):
-            expr, mse = polish_constants(cand.expression, symbols, X, y, max_nfev=60)
+            expr, mse = polish_constants(cand.expression, symbols, X, y, max_nfev=60, canonical=False)
             if mse < cand.mse:
-                cand.expression, cand.mse = expr, mse
+                cand.expression, cand.mse, cand.raw = expr, mse, True
     return out
 
 
