@@ -353,3 +353,25 @@ def test_the_turning_pendulum_distils_to_a_sine_by_default(turning_pendulum):
     assert _terms(f1).keys() == {Z} and abs(_terms(f1)[Z] - 0.2) < 0.004  # measured 0.1996
     coef, fn = f2.as_coeff_Mul()
     assert fn == sp.sin(Z) and abs(float(coef) - 9.81) < 0.02 * 9.81  # measured 9.8103
+
+
+def test_parse_infix_of_a_deep_tanh_with_pi_returns_the_expression_on_the_callers_symbols():
+    """A front member of Operon on a -18 dB stick-slip record: nested tanh around an argument with float32 pi.
+    sympy's evaluation asked whether the argument is real, and for plain symbols it expanded it and took
+    polynomial gcds (the whole front took 280 s to parse, the search 3 s); the parser now evaluates on real
+    symbols of the same names and hands back the caller's symbols. The value must be the text's."""
+    x, v = sp.symbols("x v")
+    text = ("(0.25265464186668396 + ((-10.58209705352783203) * tanh(tanh(tanh(tanh(tanh(tanh(tanh(tanh((tanh("
+            "(1.20929491519927979 * X2)) - tanh((tanh(tanh((3.14159274101257324 * X2))) * 2.00266122817993164)))))))"
+            "))))))")
+    expr = parse_infix(text, [v, x])
+    assert expr.free_symbols == {x} and not next(iter(expr.free_symbols)).is_real  # the caller's plain symbol
+    grid = np.linspace(-1.0, 1.0, 41)
+    inner = np.tanh(1.20929491519927979 * grid) - np.tanh(2.00266122817993164 * np.tanh(np.tanh(3.14159274101257324 * grid)))
+    for _ in range(8):
+        inner = np.tanh(inner)
+    want = 0.25265464186668396 - 10.58209705352783203 * inner
+    got = sp.lambdify(x, expr, "numpy")(grid)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14)
+    # the same canonical form as an evaluated parse of an easy text (sorted terms, numbers first)
+    assert str(parse_infix("(X2 * 0.5) + (X1 * X1)", [v, x])) == "v**2 + 0.5*x"

@@ -320,9 +320,17 @@ def parse_infix(text: str, symbols: Sequence) -> Any:
         raise ValueError(f"cannot tokenize model {text!r}")
     if bad is not None:
         raise ValueError(f"unexpected token {bad!r} in model {text!r}")
-    local = {f"X{i + 1}": s for i, s in enumerate(symbols)}
+    # The text is parsed with real symbols of the same names (the variables are real): sympy's
+    # evaluation then answers "is this argument real?" at once, where for plain symbols it may expand
+    # a long argument of tanh and take a gcd of polynomials (seen: 280 s for the 16 members of one
+    # front of a very noisy stick-slip record). The result is rebuilt on the caller's symbols without
+    # evaluating again (names sort alike, so the canonical order is kept).
+    real = {s: sp.Symbol(s.name, real=True) for s in symbols}
+    local = {f"X{i + 1}": real[s] for i, s in enumerate(symbols)}
     local.update({"tanh": sp.tanh, "sin": sp.sin, "cos": sp.cos, "exp": sp.exp, "log": sp.log,
                   "sqrt": sp.sqrt, "abs": sp.Abs, "square": lambda a: a**2})
-    return parse_expr(text.replace("^", "**"), local_dict=local,
+    expr = parse_expr(text.replace("^", "**"), local_dict=local,
                       global_dict={"Integer": sp.Integer, "Float": sp.Float, "Rational": sp.Rational},
                       transformations=standard_transformations, evaluate=True)
+    with sp.core.parameters.evaluate(False):
+        return expr.xreplace({r: s for s, r in real.items()})
