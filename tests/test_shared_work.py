@@ -157,7 +157,6 @@ def test_prepared_curves_evaluate_arrays_as_their_scalar_form(duffing):
 
 
 def test_stacked_runs_match_runs_one_at_a_time():
-    system = get_system("duffing")
     model = symbolic_model("0.3*z", "z**3 - z")  # the true curves: only the solver differs
     t = np.linspace(0.0, 30.0, 601)
     A, W = np.array([0.5, 0.3, 0.45]), np.array([1.2, 1.0, 1.3])
@@ -201,9 +200,12 @@ def test_forward_validation_stacked_gives_the_statuses_and_separation_times_of_o
     cases = make_validation_cases(system, 4, seed=5)
     for model in (symbolic_model("0.3*z", "z**3 - z"), symbolic_model("0.32*z", "1.05*z**3 - z"),
                   symbolic_model("0.3*z", "-z**3 - 2*z")):
-        stacked = evaluate_forward(model, system, cases)
+        # LSODA runs case by case (faster); the stacked path serves the other solvers
+        assert validation._batched_runs(model, cases, None, None, "LSODA", 1e-10, 1e-12, 20.0, None) is None
+        stacked = evaluate_forward(model, system, cases, method="DOP853")
+        assert validation._batched_runs(model, cases, None, None, "DOP853", 1e-10, 1e-12, 20.0, None) is not None
         monkeypatch.setattr(validation, "_batched_runs", lambda *a, **k: None)
-        alone = evaluate_forward(model, system, cases)
+        alone = evaluate_forward(model, system, cases, method="DOP853")
         monkeypatch.undo()
         assert [c.status for c in stacked.cases] == [c.status for c in alone.cases]
         np.testing.assert_allclose([c.t_sep for c in stacked.cases], [c.t_sep for c in alone.cases], atol=0.05)
@@ -224,3 +226,28 @@ def test_stacked_duffing_draws_give_the_cases_of_single_draws():
     scripts = get_system("duffing", "scripts")
     c = make_validation_cases(scripts, 1, seed=9, t_end=20.0, n_points=201)[0]
     np.testing.assert_array_equal(scripts.simulate(t_eval=c.t_eval, x0=c.x0, v0=c.v0, A=c.A, Omega=c.Omega).x, c.x_true)
+
+
+# ---------------------------------------------------------------------------- LSODA from sample to sample
+def test_lsoda_sample_to_sample_gives_the_trajectory_and_failures_of_stepping(monkeypatch):
+    """A run without events goes by scipy.integrate.ode from sample to sample; it must give the stepped
+    LSODA's trajectory to the tolerances, and stop with the same status where the model runs away."""
+    import charcurves.simulate._forward as forward
+
+    t = np.linspace(0.0, 60.0, 1201)
+    cases = [(symbolic_model("0.3*z", "z**3 - z"), 0.5, -0.3, None),  # Duffing: chaotic, stays bounded
+             (symbolic_model("-0.5*z", "-z**3"), 1.0, 1.0, 1e3)]       # negative damping, softening: diverges
+    for model, x0, v0, max_abs in cases:
+        kw = dict(rtol=1e-10, atol=1e-12) if max_abs is None else dict(max_abs=max_abs)
+        fast = simulate_model(model, t, x0, v0, sinusoidal_forcing(0.5, 1.2), **kw)
+        with monkeypatch.context() as m:
+            m.setattr(forward._Run, "free_lsoda", lambda self, t0, x, v: self.slip(t0, x, v, 0))
+            stepped = simulate_model(model, t, x0, v0, sinusoidal_forcing(0.5, 1.2), **kw)
+        assert fast.status == stepped.status
+        n = min(fast.x.size, stepped.x.size)
+        if max_abs is None:
+            assert fast.status == "ok" and n == t.size
+            np.testing.assert_allclose(fast.x[:400], stepped.x[:400], atol=1e-6)  # the first 20 s; chaos after
+        else:
+            assert fast.status == "diverged" and abs(fast.x.size - stepped.x.size) <= 1
+            np.testing.assert_allclose(fast.x[: n - 1], stepped.x[: n - 1], rtol=1e-5, atol=1e-6)

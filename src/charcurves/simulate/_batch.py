@@ -94,17 +94,17 @@ def simulate_model_batch(model, t_eval, x0: Sequence[float], v0: Sequence[float]
     (['ok', 'ok'], True)
     """
     t_eval = np.asarray(t_eval, dtype=float).reshape(-1)
-    x0 = np.asarray(x0, dtype=float).reshape(-1)
-    v0 = np.asarray(v0, dtype=float).reshape(-1)
-    if x0.shape != v0.shape:
-        raise ConfigError(f"x0 and v0 need one value per run each, got {x0.size} and {v0.size}")
+    xs: np.ndarray = np.asarray(x0, dtype=float).reshape(-1)
+    vs: np.ndarray = np.asarray(v0, dtype=float).reshape(-1)
+    if xs.shape != vs.shape:
+        raise ConfigError(f"x0 and v0 need one value per run each, got {xs.size} and {vs.size}")
     if t_eval.size < 2 or not np.all(np.isfinite(t_eval)) or np.any(np.diff(t_eval) <= 0):
         raise ConfigError("t_eval must be finite, strictly increasing sample times; pass e.g. np.linspace(0, 80, 2001)")
-    n = x0.size
+    n = xs.size
 
     def one(i: int) -> SimulationResult:
         own = run_forcings[i] if run_forcings is not None else (lambda s: float(forcing(s)[i]))
-        res = simulate_model(model, t_eval, float(x0[i]), float(v0[i]), own,
+        res = simulate_model(model, t_eval, float(xs[i]), float(vs[i]), own,
                              method=method, rtol=rtol, atol=atol, time_budget=time_budget, box=box,
                              max_abs=max_abs, evaluation=evaluation)
         res.details["batched"] = False
@@ -118,7 +118,7 @@ def simulate_model_batch(model, t_eval, x0: Sequence[float], v0: Sequence[float]
         return [one(i) for i in range(n)]
     results: list[SimulationResult | None] = [None] * n
     done = _Batch(f1, f2, float(model.gain), float(model.offset), forcing, t_eval, solver_class(method),
-                  float(rtol), float(atol), box, float(max_abs), float(batch_budget)).run(x0, v0, results)
+                  float(rtol), float(atol), box, float(max_abs), float(batch_budget)).run(xs, vs, results)
     for i in range(n):
         if i not in done:
             results[i] = one(i)

@@ -8,7 +8,8 @@ stick-slip event loop exceeded its number of switches).
 
 The solver is driven step by step (scipy's ``OdeSolver`` classes), so every accepted step is
 checked against the state bounds and the time budget, and the samples computed before a
-failure are kept. A velocity curve with a jump at 0 (dry friction) is integrated with events:
+failure are kept; a run without events with LSODA (the default) goes from sample to sample
+instead (``scipy.integrate.ode``: no Python work per internal step), checked at every sample. A velocity curve with a jump at 0 (dry friction) is integrated with events:
 slip phases with a fixed friction direction, sticking phases with ``x' = 0`` while the net
 force stays within the friction limit (see ``docs/simulation.md``).
 """
@@ -279,6 +280,30 @@ class _Run:
                 return "end", t_new, x_new
             self.check_time(t_new)
 
+    def free_lsoda(self, t0: float, x0: float, v0: float) -> None:
+        """A run without events, by LSODA from sample to sample (``scipy.integrate.ode``): the solver
+        steps in Fortran between samples, with no Python work per step (about twice as fast as
+        stepping through ``scipy.integrate.LSODA`` for the 2 000 samples of a validation case; the
+        same trajectory to the tolerances). The state is checked at every sample, and at every
+        right-hand-side call as in stepping ("diverged", "timeout")."""
+        from scipy.integrate import ode
+
+        solver = ode(self.rhs(0)).set_integrator("lsoda", rtol=self.rtol, atol=self.atol, nsteps=10**9)
+        solver.set_initial_value([x0, v0], t0)
+        out, t = self.out, self.out.t
+        for i in range(out.filled, t.size):
+            if t[i] <= t0:  # the initial sample
+                out.x[i], out.v[i], out.filled = x0, v0, i + 1
+                continue
+            y = solver.integrate(float(t[i]))
+            if not solver.successful():
+                raise _Stop("solver_failed", f"the solver failed before t = {t[i]:.4g} (LSODA status "
+                                             f"{solver.get_return_code()})", float(t[i - 1]))
+            x, v = float(y[0]), float(y[1])
+            self.check_state(float(t[i]), x, v)
+            out.x[i], out.v[i], out.filled = x, v, i + 1
+            self.check_time(float(t[i]))
+
     def stick(self, t_s: float, x_s: float):
         """Stay at rest from ``t_s`` until |net force| exceeds the jump height.
 
@@ -327,7 +352,10 @@ class _Run:
             self.out.x[0], self.out.v[0], self.out.filled = x0, v0, 1
             return
         if self.mu == 0.0:
-            self.slip(t0, x0, v0, 0)
+            if getattr(self.solver, "__name__", "") == "LSODA":
+                self.free_lsoda(t0, x0, v0)
+            else:
+                self.slip(t0, x0, v0, 0)
             return
         t, x = t0, x0
         mode = (1 if v0 > 0 else -1) if v0 != 0.0 else self.direction_at_rest(t, x)

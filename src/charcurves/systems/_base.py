@@ -246,7 +246,7 @@ class BenchmarkSystem(abc.ABC):
         """
         for d in draws:
             try:
-                tr = self.simulate(t_eval=t_eval, **d)
+                tr = self.simulate(t_eval=t_eval, x0=d["x0"], v0=d["v0"], A=d["A"], Omega=d["Omega"])
             except CharCurvesError:
                 yield None
                 continue
