@@ -130,3 +130,27 @@ def test_the_report_counts_sr_runs_with_mixed_terms_per_level():
     assert "| duffing | default | sr | 2 | 5 | 0 dB: 2/2 |" in text
     old = df.assign(mixed_terms=float("nan"))  # a results.csv written before the column existed
     assert "does not record the mixed terms" in _section_text(lambda rep: sections._mixed(rep, old))
+
+
+def test_run_json_keeps_every_earlier_invocation_and_the_report_lists_them(bench, tmp_path):
+    """A second invocation into a folder (another preset, a resumed run) keeps the first's stage times
+    under "previous"; the report shows them in a table of earlier invocations."""
+    from charcurves.experiments._report_inputs import write_run_file
+
+    folder = tmp_path / "b"
+    shutil.copytree(bench, folder, ignore=shutil.ignore_patterns("*.sqlite*", "models"))
+    first = json.loads((folder / "run.json").read_text())
+    assert "previous" not in first
+    second = dict(first, preset="paper", timing={"main sweep": 1234.0})
+    write_run_file(str(folder), second)
+    stored = json.loads((folder / "run.json").read_text())
+    assert stored["preset"] == "paper" and stored["timing"] == {"main sweep": 1234.0}
+    assert [p["timing"] for p in stored["previous"]] == [first["timing"]]
+    assert stored["previous"][0]["preset"] == first["preset"] and "previous" not in stored["previous"][0]
+    write_run_file(str(folder), dict(first, timing={"main sweep": 5.0}))
+    assert [p["preset"] for p in json.loads((folder / "run.json").read_text())["previous"]] == \
+        [first["preset"], "paper"]
+    build_report(str(folder))
+    text = (folder / "report.md").read_text()
+    assert "Earlier invocations into this folder, oldest first" in text
+    assert "main sweep 1234 s" in text

@@ -312,6 +312,11 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
         if isinstance(realizations, bool) or int(realizations) < 1:
             raise ConfigError(f"realizations must be a positive integer, got {realizations!r}")
         sizes["realizations"] = sizes["appendix_f_realizations"] = int(realizations)
+    from ..symbolic import POST_SR_OPTIONS
+
+    # what post-SR searches with (the quick grid's budget, else the post-SR defaults), for the report
+    sizes["post_sr"] = {"generations": int(sizes["sr_generations"] or POST_SR_OPTIONS["generations"]),
+                        "max_points": int(POST_SR_OPTIONS["max_points"])}
     if forward_cases is not None:
         if isinstance(forward_cases, bool) or int(forward_cases) < 0:
             raise ConfigError(f"forward cases must be a non-negative integer, got {forward_cases!r}")

@@ -40,12 +40,28 @@ _WHAT = {
 
 
 def write_run_file(out_dir: str, run: Mapping[str, Any]) -> str:
-    """Write ``run.json`` (atomically) and return its path."""
+    """Write ``run.json`` (atomically) and return its path.
+
+    The folder's earlier invocations (another preset's rows, a resumed run) are kept under
+    ``"previous"``, oldest first, each with what it ran and its stage times, so that the report
+    can show every invocation's cost and not only the last one's.
+    """
     from ..io._csv import atomic_write_bytes
     from ._store import _jsonable
 
     path = os.path.join(out_dir, RUN_FILE)
-    atomic_write_bytes(path, json.dumps(_jsonable(dict(run)), indent=1, sort_keys=True).encode("utf-8"))
+    record = dict(run)
+    try:
+        with open(path, encoding="utf-8") as fh:
+            old = json.load(fh)
+    except (OSError, ValueError):
+        old = None
+    if isinstance(old, dict):
+        earlier = list(old.pop("previous", []) or [])
+        earlier.append({k: old[k] for k in ("preset", "systems", "methods", "full", "sections", "timing", "sizes")
+                        if k in old})
+        record["previous"] = earlier
+    atomic_write_bytes(path, json.dumps(_jsonable(record), indent=1, sort_keys=True).encode("utf-8"))
     return path
 
 

@@ -127,9 +127,16 @@ def _overview(rep, df, run, timing) -> None:
                         "paper: 100 and 10).")
         if "lyapunov" in ran:
             text.append(f"The Lyapunov exponent over {s['lyapunov_time']:g} time units.")
-        text.append(f"Symbolic regression (SR, SR-CC, post-SR) uses Operon with one population of 300 and "
-                    f"{s.get('sr_generations') or 40} generations (library default 40; the paper: PySR, 10 x 100, "
-                    "200 iterations).")
+        if "post_sr" in s:
+            text.append(f"Symbolic regression uses Operon with one population of 300: SR and SR-CC "
+                        f"{s.get('sr_generations') or 40} generations on at most 400 points of the record (library "
+                        f"default 40; the paper: PySR, 10 x 100, 200 iterations), post-SR {s['post_sr']['generations']} "
+                        f"generations on {s['post_sr']['max_points']} of a curve's 1000 samples (library default 20 on "
+                        "100; the paper: PySR, 20 x 100 iterations).")
+        else:  # run.json of a release before post-SR had its own settings
+            text.append(f"Symbolic regression (SR, SR-CC, post-SR) uses Operon with one population of 300 and "
+                        f"{s.get('sr_generations') or 40} generations (library default 40; the paper: PySR, 10 x 100, "
+                        "200 iterations).")
         if "appendix-f" in ran:
             text.append(f"Appendix F uses {min(s['realizations'], s.get('appendix_f_realizations', s['realizations']))}"
                         " realisation(s) per level.")
@@ -141,6 +148,16 @@ def _overview(rep, df, run, timing) -> None:
     if timing:
         rep.table(["stage", "wall time (s)"], [[k, float(v)] for k, v in timing.items()],
                   caption="Wall time of the last invocation's stages (a resumed run skips finished jobs).")
+    if run.get("previous"):
+        rows = []
+        for i, p in enumerate(run["previous"]):
+            sz = p.get("sizes") or {}
+            size = f"{len(sz.get('snr_db', ())) or '?'} levels x {sz.get('realizations', '?')}"
+            stage_times = ", ".join(f"{k} {float(v):.0f} s" for k, v in (p.get("timing") or {}).items())
+            rows.append([i + 1, p.get("preset", "?"), ", ".join(p.get("systems", ())), len(p.get("methods", ())),
+                         size, stage_times])
+        rep.table(["invocation", "preset", "systems", "methods", "grid", "stage wall times"], rows,
+                  caption="Earlier invocations into this folder, oldest first (their rows are in results.csv too).")
     rep.paragraph("Ensembles over noise realisations use the authors' scripts' mean of per-run RMSEs (which "
                   "reproduces the paper's Tables 2 and 3); the paper's Eq. 19 (root mean square) is given beside "
                   "it in Table 2. A is the slope-1 log-log fit RMSE = A η over the levels run. The report is built "
@@ -457,5 +474,7 @@ def _cost(rep, df) -> None:
     rep.table(["system", "preset", "method", "jobs", "median fit s", "median job s (with validation)",
                "total s", "paper s"], rows,
               caption="Measured in this run, one thread per job on this machine (neural jobs of one SNR level are "
-                      "trained as one batch; their fit time is the batch's share). Paper: "
+                      "trained as one batch; their fit time is the batch's share; a method that extends another's "
+                      "fit on the same record, +post-SR or sr-cc+refit, counts the shared training or searches in "
+                      "its own time, as if run alone). Paper: "
                       f"{paper.SOURCES['cost']}; its SR time is PySR's.")
