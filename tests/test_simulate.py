@@ -233,6 +233,19 @@ def duffing_nn_model(duffing_20db):
     return cc.fit(duffing_20db, method="nn-cc+sym", random_state=0, threads=1)
 
 
+def test_a_curve_no_table_can_resolve_is_evaluated_exactly_with_the_reason():
+    """A jump inside the domain (not split off): the table's midpoint error does not fall with doubling,
+    so the table is abandoned at once. The estimate of the doublings needed used to overflow (2.0 ** 1e9:
+    OverflowError, which ended a paper-preset benchmark at its report after every job had run)."""
+    from charcurves.simulate import prepare_curve
+
+    curve = SymbolicFittedCurve("f2", "x", (-2.0, 2.0), "z + sign(z - 0.123)")
+    prepared = prepare_curve(curve, evaluation="tabulated", split_jump=False)
+    assert prepared.evaluation == "exact" and prepared.table_error > 0.01  # measured 0.071 (the jump is 2)
+    assert prepared.note.startswith("table error") and prepared.note.endswith("evaluated exactly")
+    assert (prepared.smooth(1.0), prepared.smooth(0.1)) == (2.0, pytest.approx(-0.9))
+
+
 def test_tabulated_and_exact_evaluation_agree(duffing, duffing_nn_model):
     from charcurves.simulate import prepare_curve
 
