@@ -477,9 +477,7 @@ def _prepare(curve, evaluation, jump, margin, table_points, table_rtol, max_tabl
             # once when the observed rate cannot reach the tolerance within max_table_points
             rate = max(previous / max(err, 1e-300), 1.0 + 1e-9)
             doublings = math.log(err / table_rtol) / math.log(rate)
-            # compared as doublings (2.0 ** doublings overflows when the error does not fall at all,
-            # e.g. a jump the table cannot resolve)
-            if doublings > math.log2(max_table_points / n):
+            if doublings > math.log2(max_table_points / n):  # as doublings: 2.0 ** doublings can overflow
                 return PreparedCurve(exact, exact_slope, height, width, "exact", err,
                                      f"table error {err:.2g} > {table_rtol:g} with {n} points; evaluated exactly",
                                      exact_vector, ops)
