@@ -60,6 +60,26 @@ def test_the_report_rebuilds_byte_for_byte_from_the_committed_files_alone(bench,
     assert "| duffing | parametric | default | default | 20 |" in text
 
 
+def test_a_gzipped_results_csv_rebuilds_the_same_report(bench, tmp_path):
+    """A large results.csv is committed as results.csv.gz (gzip -n); --report-only reads it and
+    builds the same report.md, and the result names the file it read."""
+    import gzip
+
+    copy = tmp_path / "gz"
+    copy.mkdir()
+    for name in COMMITTED:
+        if name == "results.csv":
+            (copy / "results.csv.gz").write_bytes(gzip.compress((bench / name).read_bytes(), mtime=0))
+        else:
+            shutil.copy(bench / name, copy / name)
+    from charcurves.experiments import run_benchmark
+
+    res = run_benchmark(copy, report_only=True)
+    assert res.results_csv == str(copy / "results.csv.gz") and res.n_jobs == 1
+    assert (copy / "report.md").read_bytes() == (bench / "report.md").read_bytes()
+    assert not (copy / "results.csv").exists()
+
+
 @pytest.mark.parametrize("missing", ["results.csv", "run.json", "extras.json", "appendix_f.csv",
                                      "appendix_f_default.csv"])
 def test_a_missing_file_exits_2_with_one_line_naming_it(bench, tmp_path, capsys, missing):

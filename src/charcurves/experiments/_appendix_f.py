@@ -72,13 +72,14 @@ def protocol_frames(out_dir: str, *, required_for: str | None = None) -> dict:
     run whose Appendix F ran; the CSV of every protocol that run has must be there (a ConfigError
     names the missing one)."""
     from .._errors import ConfigError
-    from ._report_inputs import read_results_csv
+    from ._report_inputs import committed_csv, read_results_csv
 
     out = {}
     for name, (stem, _, _) in PROTOCOLS.items():
         path = os.path.join(out_dir, f"{stem}.csv")
-        if os.path.isfile(path):
-            out[name] = read_results_csv(path)
+        found = committed_csv(out_dir, f"{stem}.csv")
+        if found is not None:
+            out[name] = read_results_csv(found)
         elif required_for is not None and name in _protocols_for(required_for):
             raise ConfigError(f"cannot rebuild the report: {path} is missing (the Appendix F jobs of the {name} "
                               "protocol, which run.json says were run); restore the file, or run `charcurves benchmark` into this folder "

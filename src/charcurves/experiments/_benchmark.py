@@ -270,14 +270,14 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
 
     t_start = time.perf_counter()
     if report_only:
-        from ._report_inputs import load_report_inputs, write_report
+        from ._report_inputs import committed_csv, load_report_inputs, write_report
 
         inputs = load_report_inputs(out_dir)
         md, page = write_report(out_dir, inputs)
         df, run, _, af = inputs
         frames = [df] if run.get("noise_on", "force") == "force" else list(af.values())
-        csv = os.path.join(os.fspath(out_dir), "results.csv" if run.get("noise_on", "force") == "force"
-                           else "appendix_f.csv")
+        name = "results.csv" if run.get("noise_on", "force") == "force" else "appendix_f.csv"
+        csv = committed_csv(os.fspath(out_dir), name) or os.path.join(os.fspath(out_dir), name)
         return BenchmarkResult(os.fspath(out_dir), csv, md, page, sum(len(f) for f in frames), 0,
                                sum(int((f["status"] != "ok").sum()) for f in frames), time.perf_counter() - t_start,
                                {"report": time.perf_counter() - t_start})

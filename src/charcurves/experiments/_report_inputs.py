@@ -4,6 +4,7 @@ A benchmark run writes, besides its resumable stores (``results.sqlite``, ``appe
 ``models/``, large and not meant to be committed):
 
 * ``results.csv``: one row per job of the main sweep (every table and figure of the noise sweep);
+  a large one may be committed gzipped as ``results.csv.gz`` (``gzip -n``), read the same way;
 * ``appendix_f.csv`` and ``appendix_f_default.csv``: the same for Appendix F (noise on x; the paper's
   protocol and charcurves' default), when that section ran;
 * ``extras.json``: the side studies (Lyapunov time, Table 1's MIW, Appendix C) and the data of the
@@ -25,7 +26,7 @@ from typing import Any
 
 from .._errors import ConfigError
 
-__all__ = ["RUN_FILE", "COMMITTED_FILES", "write_run_file", "read_results_csv", "load_report_inputs", "build_report",
+__all__ = ["RUN_FILE", "COMMITTED_FILES", "write_run_file", "read_results_csv", "committed_csv", "load_report_inputs", "build_report",
            "write_report"]
 
 RUN_FILE = "run.json"
@@ -66,7 +67,8 @@ def write_run_file(out_dir: str, run: Mapping[str, Any]) -> str:
 
 
 def read_results_csv(path: str | os.PathLike):
-    """``results.csv`` (or ``appendix_f.csv``) as the DataFrame the report's tables take.
+    """``results.csv`` (or ``appendix_f.csv``, either gzipped as ``.csv.gz``) as the DataFrame the
+    report's tables take.
 
     Examples
     --------
@@ -99,8 +101,28 @@ def read_results_csv(path: str | os.PathLike):
     return df[list(RESULT_COLUMNS)]
 
 
+def committed_csv(out_dir: str, name: str) -> str | None:
+    """The path of ``name`` (a ``.csv``) in ``out_dir``, or of its gzipped copy ``name + ".gz"`` when
+    only that is there (a large committed file); None when neither is. The plain file wins: a run
+    into the folder rewrites it from the store.
+
+    >>> import tempfile, gzip, os
+    >>> d = tempfile.mkdtemp(); committed_csv(d, "results.csv") is None
+    True
+    >>> with gzip.open(os.path.join(d, "results.csv.gz"), "wb") as fh: _ = fh.write(b"a\n1\n")
+    >>> os.path.basename(committed_csv(d, "results.csv"))
+    'results.csv.gz'
+    """
+    for path in (os.path.join(out_dir, name), os.path.join(out_dir, name + ".gz")):
+        if os.path.isfile(path):
+            return path
+    return None
+
+
 def _need(out_dir: str, name: str) -> str:
     path = os.path.join(out_dir, name)
+    if name.endswith(".csv"):
+        path = committed_csv(out_dir, name) or path
     if not os.path.isfile(path):
         raise ConfigError(f"cannot rebuild the report: {path} is missing ({_WHAT[name]}); restore the file, or run "
                           "`charcurves benchmark` into this folder to write it")

@@ -31,11 +31,11 @@ from ._engine import (
     SR_OPTION_KEYS,
     TANH_OPERATORS,
     OperonEngine,
-    PySREngine,
     SymbolicRegressionEngine,
     make_engine,
     operators_option,
 )
+from ._pysr import PySREngine
 from ._expressions import eval_expression, expression_complexity, parse_infix, polish_constants, split_terms
 from ._selection import SELECTION_CRITERIA, FrontEntry, SRResult, select_model
 
