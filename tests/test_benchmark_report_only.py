@@ -80,6 +80,30 @@ def test_a_gzipped_results_csv_rebuilds_the_same_report(bench, tmp_path):
     assert not (copy / "results.csv").exists()
 
 
+@pytest.mark.parametrize("name, content, says", [
+    ("results.csv.gz", "truncated", "is not a readable results CSV (EOFError: Compressed file ended"),
+    ("results.csv", b"step,loss\n1,0.5\n", "lacks the column(s) system, method, snr_db, realization, rmse_f1, "
+                                           "rmse_f2, status of a benchmark results CSV"),
+    ("results.csv", b"", "is not a readable results CSV (EmptyDataError: No columns to parse from file)")])
+def test_a_damaged_results_csv_exits_2_naming_it_and_keeps_the_report(bench, tmp_path, capsys, name, content, says):
+    """Before, a CSV of another table rebuilt an empty report over the good one with exit 0, and a
+    truncated results.csv.gz ended in a traceback."""
+    import gzip
+
+    copy = tmp_path / "damaged"
+    copy.mkdir()
+    for other in COMMITTED[1:]:
+        shutil.copy(bench / other, copy / other)
+    if content == "truncated":
+        content = gzip.compress((bench / "results.csv").read_bytes(), mtime=0)[:-40]
+    (copy / name).write_bytes(content)
+    (copy / "report.md").write_text("the earlier report\n", encoding="utf-8")
+    assert main(["benchmark", "--out", str(copy), "--report-only"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"charcurves: error: cannot rebuild the report: {copy / name} {says}")
+    assert (copy / "report.md").read_text(encoding="utf-8") == "the earlier report\n"
+
+
 @pytest.mark.parametrize("missing", ["results.csv", "run.json", "extras.json", "appendix_f.csv",
                                      "appendix_f_default.csv"])
 def test_a_missing_file_exits_2_with_one_line_naming_it(bench, tmp_path, capsys, missing):

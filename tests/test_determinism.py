@@ -114,10 +114,15 @@ def test_two_processes_give_byte_identical_result_json_for_nn_cc_sym(csv, tmp_pa
     allocates its column-pivot array (jpvt) uninitialised, and LAPACK's ?gelsy reads it on entry (a
     nonzero entry fixes that column in front), so the pivoting of the warm start's QR followed
     leftover heap contents. The warm start now names the gelsd driver (fitting/_warm.py); see the
-    test below."""
+    test below.
+
+    The second process has OMP_NUM_THREADS=2: the fit runs with its own thread count (``--threads``,
+    default 1) from the warm start to the output error. Before, the warm start ran outside it with
+    torch's default count (the number of cores unless OMP_NUM_THREADS says otherwise), which changed
+    the last bits of result.json between a shell with OMP_NUM_THREADS=1 and one without."""
     procs = []
     for i in (1, 2):  # side by side: half the wall time on two cores
-        env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONHASHSEED=str(i))
+        env = dict(os.environ, OMP_NUM_THREADS=str(i), PYTHONHASHSEED=str(i))
         procs.append(subprocess.Popen([sys.executable, "-m", "charcurves", "fit", str(csv), "--method", "nn-cc+sym",
                                        "--out", str(tmp_path / f"p{i}"), *FAST], env=env, text=True,
                                       stdout=subprocess.PIPE, stderr=subprocess.PIPE))

@@ -8,6 +8,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .._errors import ModelFileError
+from .._lambdify import numpy_function
 from ._expr import monomial_power, parse_basis_function
 from ._neural import NeuralCurve, jump_log_eps
 
@@ -304,7 +305,7 @@ class BasisFittedCurve(FittedCurve):
         self._exprs_cache: list | None = None
         if self._powers is None:
             z = sp.Symbol("z")
-            self._funcs = [sp.lambdify(z, e, modules="numpy") for e in self._exprs]
+            self._funcs = [numpy_function(z, e) for e in self._exprs]
             self._pinned = all(sp.simplify(e.subs(z, 0)) == 0 for e in self._exprs)
         else:
             self._funcs = [(lambda z, k=k: z**k if k != 1 else z) if k else (lambda z: 1) for k in self._powers]
@@ -388,7 +389,7 @@ class SymbolicFittedCurve(FittedCurve):
             from .._errors import ConfigError
 
             raise ConfigError(f"curve {name}: expression uses {sorted(map(str, extra))}; it must depend on z only")
-        self._func = sp.lambdify(sp.Symbol("z"), self._expr, modules="numpy")
+        self._func = numpy_function(sp.Symbol("z"), self._expr)
         self._pinned = bool(self._expr.subs(sp.Symbol("z"), 0) == 0)
         self.meta = dict(meta or {})
 

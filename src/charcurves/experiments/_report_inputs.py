@@ -66,6 +66,10 @@ def write_run_file(out_dir: str, run: Mapping[str, Any]) -> str:
     return path
 
 
+#: Columns every release's results CSV has (the newer ones are filled in when missing).
+_REQUIRED = ("system", "method", "snr_db", "realization", "rmse_f1", "rmse_f2", "status")
+
+
 def read_results_csv(path: str | os.PathLike):
     """``results.csv`` (or ``appendix_f.csv``, either gzipped as ``.csv.gz``) as the DataFrame the
     report's tables take.
@@ -79,13 +83,24 @@ def read_results_csv(path: str | os.PathLike):
     >>> df = read_results_csv(p)
     >>> float(df["snr_db"][0]), df["preset"][0], float(df["eta"][0])
     (inf, 'default', 0.0)
+
+    A file that is not such a CSV (truncated, another table) is a ConfigError naming it and what is wrong.
     """
     import pandas as pd
 
     from ._benchmark import RESULT_COLUMNS
     from ._tables import _eta
 
-    df = pd.read_csv(path)
+    try:
+        df = pd.read_csv(path)
+    except (OSError, EOFError, ValueError, UnicodeDecodeError) as exc:  # truncated gzip, not a CSV, ...
+        raise ConfigError(f"cannot rebuild the report: {os.fspath(path)} is not a readable results CSV "
+                          f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'unreadable'}); restore "
+                          "the file from the run or the repository") from None
+    missing = [c for c in _REQUIRED if c not in df.columns]
+    if missing:
+        raise ConfigError(f"cannot rebuild the report: {os.fspath(path)} lacks the column(s) {', '.join(missing)} "
+                          "of a benchmark results CSV; restore the file written by `charcurves benchmark`")
     for c in RESULT_COLUMNS:
         if c not in df.columns:  # files of older releases lack the newer columns
             df[c] = {"preset": "default", "variant": "paper", "noise_on": "force"}.get(c, float("nan"))

@@ -57,7 +57,8 @@ class CharacteristicCurves:
     random_state : int
         Seed of every random choice (0 to 2**32 - 1).
     threads : int, optional
-        Torch threads during training (None leaves torch's setting).
+        Torch threads during the whole fit: warm start, training, output error (None leaves
+        torch's setting).
     device : {"cpu", "cuda"}
     progress : callable, optional
         ``progress(phase, step, total, loss)`` during training.
@@ -159,14 +160,19 @@ class CharacteristicCurves:
         return self
 
     def fit_many(self, trajectories: Sequence, seeds: Sequence[int] | None = None) -> list[FittedModel]:
-        """Fit many records (noise realisations, SNR levels...); neural curves train in one batch."""
-        if isinstance(self.symmetry, str) and self.symmetry.strip().lower() == "auto":
-            from ._symmetry import fit_many_auto  # detect parities, then fit with them
+        """Fit many records (noise realisations, SNR levels...); neural curves train in one batch.
+        ``threads`` holds for the whole fit (warm start, training, output error), so the bytes of
+        the result do not depend on the environment's OMP_NUM_THREADS."""
+        from ._train import torch_threads
 
-            return fit_many_auto(self, trajectories, seeds)
-        from ._pipeline import run_pipeline
+        with torch_threads(self.threads):
+            if isinstance(self.symmetry, str) and self.symmetry.strip().lower() == "auto":
+                from ._symmetry import fit_many_auto  # detect parities, then fit with them
 
-        return run_pipeline(self, list(trajectories), seeds)
+                return fit_many_auto(self, trajectories, seeds)
+            from ._pipeline import run_pipeline
+
+            return run_pipeline(self, list(trajectories), seeds)
 
     # ------------------------------------------------------------------ resolution (used by the pipeline)
     def method_name(self) -> str:

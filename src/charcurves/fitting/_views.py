@@ -14,6 +14,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .._lambdify import numpy_function
+
 __all__ = ["DISPLAY_DIGITS", "display_expression", "display_number", "format_closed_form", "equation_text",
            "curve_scale", "curve_lines", "fit_statistics",
            "settings_rows", "output_error_rows", "model_html"]
@@ -62,7 +64,7 @@ def display_expression(expr, domain: Sequence[float] | None = None, *, digits: i
 
         def peak(e) -> float:
             with np.errstate(all="ignore"):
-                values = np.broadcast_to(np.asarray(sp.lambdify(z, e, "numpy")(grid), dtype=float), grid.shape)
+                values = np.broadcast_to(np.asarray(numpy_function(z, e)(grid), dtype=float), grid.shape)
             finite = values[np.isfinite(values)]
             return float(np.max(np.abs(finite))) if finite.size else math.inf
 

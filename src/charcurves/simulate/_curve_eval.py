@@ -26,6 +26,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .._errors import ConfigError
+from .._lambdify import numpy_function
 
 __all__ = ["PreparedCurve", "prepare_curve", "EVALUATIONS", "JUMP_MODES"]
 
@@ -428,10 +429,9 @@ def _prepare(curve, evaluation, jump, margin, table_points, table_rtol, max_tabl
     # exact scalar evaluation (and its derivative)
     if expr is not None and (smooth_expr is not None or smooth_vec is full):
         import sympy as sp
-
         zs = sp.Symbol("z")
         e = smooth_expr if smooth_expr is not None else expr
-        fn = sp.lambdify(zs, e, modules="numpy", docstring_limit=0)
+        fn = numpy_function(zs, e)
         ops = int(sp.count_ops(e)) + 1
         exact = lambda z: float(fn(z))  # noqa: E731
         if zs in e.free_symbols and not e.has(sp.Piecewise):  # numpy gives an array of z's shape
@@ -441,7 +441,7 @@ def _prepare(curve, evaluation, jump, margin, table_points, table_rtol, max_tabl
         # d sign(z)/dz is 0 away from 0 (the jump is not part of the tangent dynamics)
         de = sp.diff(e, zs).subs(sp.Derivative(sp.sign(zs), zs), 0)
         try:
-            dfn = sp.lambdify(zs, de, modules="numpy", docstring_limit=0)
+            dfn = numpy_function(zs, de)
             exact_slope = lambda z: float(dfn(z))  # noqa: E731
         except Exception:  # a derivative numpy cannot print (unevaluated): central differences
             exact_slope = _finite_difference(smooth_vec, scale)

@@ -16,6 +16,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from .._errors import ConfigError, SimulationError
+from .._lambdify import numpy_function
 
 __all__ = ["simulate_template_model", "SimulationStopped"]
 
@@ -126,7 +127,7 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
 
     # compiled pieces of every equation: known, input, curve arguments and coefficients, scalar signals
     syms = [sp.Symbol(n, real=True) for n in template.symbols]
-    compile_ = lambda e: sp.lambdify(syms, sp.sympify(e), modules="numpy")  # noqa: E731
+    compile_ = lambda e: numpy_function(syms, sp.sympify(e))  # noqa: E731
     eqs = []
     sc = model.scalars
     for e, eq in enumerate(template.equations):

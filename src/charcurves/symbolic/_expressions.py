@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from .._lambdify import numpy_function
+
 __all__ = ["expression_complexity", "numeric_atoms", "n_constants", "canonical", "split_terms", "lambdify_numpy",
            "eval_expression", "polish_constants", "reevaluate", "desaturate", "tidy", "parse_infix", "INFIX_FUNCS"]
 
@@ -109,9 +111,7 @@ def lambdify_numpy(expr, symbols):
 
 @functools.lru_cache(maxsize=4096)
 def _lambdify_numpy(symbols: tuple, expr):
-    import sympy as sp
-
-    return sp.lambdify(list(symbols), expr, modules="numpy", docstring_limit=0)
+    return numpy_function(list(symbols), expr)
 
 
 def eval_expression(expr, symbols, X) -> np.ndarray | None:

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import ConfigError, DataError, IdentifiabilityError
+from .._lambdify import numpy_function
 from ._parse import (DERIV, FORCE, MAX_TEXT, STATE, ParsedEquation, display, parse_side, raw_arguments,
                      show, sort_key, split_equation)
 
@@ -450,12 +451,11 @@ def evaluate_signal(expr, cols: dict[str, np.ndarray], n: int) -> np.ndarray:
     [0.5, 1.5]
     """
     import sympy as sp
-
     expr = sp.sympify(expr)
     syms = sorted(expr.free_symbols, key=lambda s: s.name)
     if not syms:
         return np.full(n, float(expr))
-    f = sp.lambdify(syms, expr, modules="numpy")
+    f = numpy_function(syms, expr)
     with np.errstate(all="ignore"):
         return np.broadcast_to(np.asarray(f(*[cols[s.name] for s in syms]), dtype=float), (n,)).copy()
 
