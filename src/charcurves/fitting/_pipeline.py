@@ -21,7 +21,7 @@ from .._errors import ConfigError
 from ._fit_path import fit_records, fitter_kind, resolve_jumps, sticking_masks
 from ._methods import METHODS, check_method_options
 from ._objectives import resolve_objective
-from ._self_check import derivative_noise, self_check
+from ._self_check import derivative_noise, measured_state_noise, self_check
 
 __all__ = ["run_pipeline", "raw_fit", "fit_with_post_sr", "check_device", "differentiator_used"]
 
@@ -210,18 +210,23 @@ def _harmonic_terms(model, layout) -> dict:
 
 
 def _check(est, ctx, model, raw, k: int) -> None:
-    """The self-check of one model; with estimated derivatives, the state's noise carried through them."""
+    """The self-check of one model, with the state's noise carried through the estimated derivatives
+    or, for measured derivative columns, through the curves."""
     from ..templates import prepare_record
 
     prepared, mask, estimated = ctx["prepared"][k], ctx["masks"][k], bool(ctx["estimated"][k])
-    noise = None
     if estimated:
         def prepare(rec):
             return prepare_record(rec, ctx["structure"], ctx["sym"], ctx["diff"], f"method {ctx['method']}",
                                   est.without_prior)[0]
 
         noise = derivative_noise(model, raw, prepared, prepare, mask, seed=ctx["seeds"][k])
-    self_check(model, prepared, mask, estimated=estimated, snr_db=est.snr_db, state_noise=noise, raw=raw)
+        via = "the estimated derivatives"
+    else:  # measured x, x' (and x''): their noise passes through the curves
+        noise = measured_state_noise(model, prepared, mask, seed=ctx["seeds"][k])
+        via = "the curves (errors in variables: noisy measured x and x' columns)"
+    self_check(model, prepared, mask, estimated=estimated, snr_db=est.snr_db, state_noise=noise, raw=raw,
+               state_noise_via=via)
 
 
 def _post_sr(est, models, prepared, seeds, stop):

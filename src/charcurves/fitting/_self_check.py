@@ -20,6 +20,9 @@ __all__ = ["self_check", "SELF_CHECK_FACTOR", "self_check_warning"]
 #: a loss more than this multiple of the noise floor gets a warning (the inner loop of model
 #: selection accepts 1.5; this bound flags fits that clearly failed, not marginal ones)
 SELF_CHECK_FACTOR = 10.0
+#: a measured x or x' column whose Savitzky-Golay noise variance is below this fraction of its
+#: variance (an SNR above 50 dB) is taken as clean by :func:`measured_state_noise`
+CLEAN_COLUMN = 1e-5
 
 
 def _equation_losses(model, record, mask) -> list[float]:
@@ -61,6 +64,44 @@ def derivative_noise(model, raw, prepared, prepare, mask=None, seed: int = 0) ->
     if mask is not None and len(mask) == d.shape[0]:
         d = d[np.asarray(mask, bool)]
     return [float(np.var(d[:, e])) for e in range(d.shape[1])], float(max(sig2.values()))
+
+
+def measured_state_noise(model, prepared, mask=None, seed: int = 0) -> tuple[list[float], float]:
+    """The part of the floor that noise on *measured* x and x' columns puts into the equation through
+    the curves (errors in variables: a curve's argument is noisy, so its value is), per equation;
+    and the largest noise variance of those columns.
+
+    Each state and velocity column's white-noise variance σ² is estimated (Savitzky-Golay
+    residuals); a copy of the prepared record with a further N(0, σ²) on each of them gives the
+    variance of the change of the model's equation residual, about Σ σ² f'(z)² over the curves
+    (x'' is not perturbed: a measured x'' is in the floor already). A column whose estimate is below
+    :data:`CLEAN_COLUMN` of its variance (50 dB) counts as clean and adds nothing: there the estimate
+    is the signal's own roughness (a stick-slip velocity's kinks), not noise, and a steep curve (a
+    friction jump) would turn it into a floor far too high.
+    """
+    rng = np.random.default_rng(int(seed))
+    multi = getattr(prepared, "states", None) is not None
+    fields = {"states": prepared.states, "velocities": prepared.velocities} if multi else \
+        {"x": {"x": prepared.x}, "v": {"v": getattr(prepared, "v", None)}}
+    sig2: dict[tuple, float] = {}
+    changes: dict[str, Any] = {}
+    for field, columns in fields.items():
+        if not columns or all(v is None for v in columns.values()):
+            continue
+        noisy = {}
+        for name, v in columns.items():
+            v = np.asarray(v, dtype=float)
+            s2 = noise_variance(v)
+            s2 = s2 if s2 > CLEAN_COLUMN * float(np.var(v)) else 0.0
+            sig2[(field, name)] = s2
+            noisy[name] = v + rng.normal(scale=np.sqrt(s2), size=v.shape) if s2 > 0 else v
+        changes[field] = noisy if multi else noisy[field]
+    r0 = np.asarray(model.force_residual(prepared), dtype=float)
+    r1 = np.asarray(model.force_residual(prepared.replace(**changes)), dtype=float)
+    d = (r1 - r0).reshape(r0.shape[0], -1)
+    if mask is not None and len(mask) == d.shape[0]:
+        d = d[np.asarray(mask, bool)]
+    return [float(np.var(d[:, e])) for e in range(d.shape[1])], float(max(sig2.values(), default=0.0))
 
 
 def _derivative_scales(record, order: int) -> list[float]:
@@ -115,7 +156,8 @@ def _output_error_check(model, raw) -> dict | None:
 
 
 def self_check(model, record, mask=None, *, estimated: bool = False, snr_db: float | None = None,
-               state_noise: tuple[list[float], float] | None = None, raw=None) -> dict:
+               state_noise: tuple[list[float], float] | None = None, raw=None,
+               state_noise_via: str = "the estimated derivatives") -> dict:
     """Add ``info["self_check"]`` to ``model`` and, when a ratio exceeds :data:`SELF_CHECK_FACTOR`,
     a line to ``info["warnings"]``; returns the check.
 
@@ -125,7 +167,9 @@ def self_check(model, record, mask=None, *, estimated: bool = False, snr_db: flo
     estimated), and the floor is :func:`charcurves.data.equation_floors`. With ``estimated``
     derivatives x'' is not taken as measured (its noise is not added to the floor); ``state_noise``
     (:func:`derivative_noise`: what the state's noise carries into the equation through the
-    differentiator) is added instead.
+    differentiator) is added instead. With measured derivatives, ``state_noise`` is
+    :func:`measured_state_noise` (the noise of the measured x and x' columns through the curves),
+    added where it is more than 1 % of a floor.
 
     Output error (``info["output_error"]`` finished): the model's loss (``model.loss``) may be the
     equation-error loss of the start, and the equation-error loss of the final curves on estimated
@@ -147,12 +191,14 @@ def self_check(model, record, mask=None, *, estimated: bool = False, snr_db: flo
     extra = list(state_noise[0]) if state_noise is not None else [0.0] * len(losses)
     if len(extra) != len(losses):
         extra = [float(np.mean(extra))] * len(losses)
+    if not estimated and not any(e > 0.01 * nf.floor for e, nf in zip(extra, floors)):
+        state_noise, extra = None, [0.0] * len(losses)  # measured columns without noise worth counting
     values = [nf.floor + e if nf.floor - nf.sigma2_acceleration > 0 else max(nf.floor + e, REL_FLOOR * s)
               for nf, e, s in zip(floors, extra, scales)]
     source = floors[0].source
     if state_noise is not None:
         source += (f"; plus the state's noise (variance {state_noise[1]:.3g}, Savitzky-Golay residual) through "
-                   "the estimated derivatives")
+                   f"{state_noise_via}")
     ee: dict[str, Any] = {"loss_over_floor": [loss / f if f > 0 else float("inf") for loss, f in zip(losses, values)],
           "loss_value": losses, "noise_floor": values, "floor_source": source,
           "loss": "equation-error loss of the final curves on the prepared record (sticking samples left out)"}
