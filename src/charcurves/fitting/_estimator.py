@@ -165,6 +165,7 @@ class CharacteristicCurves:
         the result do not depend on the environment's OMP_NUM_THREADS."""
         from ._train import torch_threads
 
+        self.check()  # the thread count among the rest, before it is used
         with torch_threads(self.threads):
             if isinstance(self.symmetry, str) and self.symmetry.strip().lower() == "auto":
                 from ._symmetry import fit_many_auto  # detect parities, then fit with them
