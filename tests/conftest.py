@@ -9,6 +9,15 @@ os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from hypothesis import settings as hypothesis_settings  # noqa: E402
+
+# The property tests (hypothesis) draw their examples from a fixed seed per test, so that a test
+# run cannot pass or fail by chance and every run checks the same inputs; no example database is
+# read or written. HYPOTHESIS_PROFILE=explore draws fresh random examples, to hunt for new failures
+# (a failure found that way is printed with its reproducing seed and belongs in a fixed test).
+hypothesis_settings.register_profile("fixed", derandomize=True, database=None)
+hypothesis_settings.register_profile("explore", derandomize=False, database=None)
+hypothesis_settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "fixed"))
 
 
 @pytest.fixture(scope="session")
