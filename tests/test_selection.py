@@ -292,3 +292,28 @@ def test_select_nn_cc_on_duffing_accepts_separable():
     assert sep["inner"]["statistic"] == pytest.approx(1.0, abs=0.1)
     assert sep["middle"]["statistic"] < MIDDLE_THRESHOLD
     assert sep["outer"]["statistic"] >= 0.2
+
+
+# --------------------------------------------------------------------------- measured records (noise on x)
+@pytest.mark.parametrize("system, accepted, inner", [("duffing", "separable", (1.03,)),
+                                                     ("van-der-pol", "position-damping", (71.3, 1.01))])
+def test_on_a_measured_record_the_inner_loop_uses_the_floor_that_holds_the_states_noise(system, accepted, inner):
+    """A record of t, x, F with 40 dB of noise on x (no derivative columns): the fits estimate the
+    derivatives and refine by output error, so the loss holds x's noise, which the forcing's floor
+    does not. The inner loop takes the fit's own check (output error over x's noise). Measured: the
+    correct family at 1.03 (Duffing) and 1.01 (van der Pol), the wrong one (separable for van der
+    Pol's x-dependent damping) rejected at 71; before, no family passed (van der Pol's correct family
+    2 681 times the forcing's floor, Duffing's 194)."""
+    clean = get_system(system).simulate()
+    rec = corrupt(clean, 40.0, on="state", seed=3)
+    assert rec.v is None and rec.a is None
+    report = select_family([rec], ["separable", "position-damping"], method="poly-cc", n_members=6,
+                           all_families=True)
+    assert report.accepted == accepted
+    stats = [r["inner"]["statistic"] for r in report.rows if r["family"] in ("separable", accepted)]
+    if len(inner) == 1:
+        assert 0.8 < stats[0] < INNER_FACTOR
+    else:
+        assert stats[0] > 20 and 0.8 < stats[1] < INNER_FACTOR
+    row = next(r for r in report.rows if r["family"] == accepted)
+    assert row["inner"]["figures"]["floor_source"].startswith("Savitzky-Golay residual of the measured state")

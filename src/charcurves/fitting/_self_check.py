@@ -205,7 +205,10 @@ def self_check(model, record, mask=None, *, estimated: bool = False, snr_db: flo
     oe = _output_error_check(model, raw)
     used: dict[str, Any] = oe if oe is not None else ee
     ratios: list[float] = list(used["loss_over_floor"])
-    check = {**used, "threshold": SELF_CHECK_FACTOR, "passed": bool(all(r <= SELF_CHECK_FACTOR for r in ratios))}
+    check = {**used, "threshold": SELF_CHECK_FACTOR, "passed": bool(all(r <= SELF_CHECK_FACTOR for r in ratios)),
+             # the floor holds noise of the state (through derivatives or curves, or output error's own):
+             # selection's inner loop then takes these figures rather than the forcing's floor alone
+             "state_noise_counted": bool(oe is not None or state_noise is not None)}
     if oe is not None:
         check["equation_error"] = ee
     model.info["self_check"] = check
