@@ -142,3 +142,31 @@ def test_the_paper_preset_on_the_cpu_is_what_the_docs_say():
         a_default = _a(default.reset_index(), method)
         assert f"{a_paper[0]:.4f} / {a_paper[1]:.4f}" in text, method
         assert f"{a_default[0]:.4f} / {a_default[1]:.4f}" in text, method
+
+
+SCRIPTS_DUFFING = ROOT / "benchmarks" / "results" / "scripts-duffing" / "results.csv.gz"
+
+
+@pytest.mark.skipif(not SCRIPTS_DUFFING.exists(), reason="the committed scripts-variant run is not in this checkout")
+def test_table_2_on_the_scripts_system_is_what_the_docs_say():
+    """The paper's Table 2 was made with the scripts' Duffing (alpha = -1.05, beta = 1.02): every method on it,
+    the estimators without a training protocol within 15 % of Table 2 (the issue's acceptance), the neural
+    methods ahead of the paper on both curves, and the A values docs/benchmark.md quotes."""
+    table2 = {  # the paper's Table 2, A of RMSE[f1], RMSE[f2] (printed there x 1e-2)
+        "parametric": (0.0109, 0.0158), "poly-cc": (0.0523, 0.0475), "sindy-cc": (0.051, 0.0436),
+        "sindy-cc+sym": (0.0303, 0.0261), "nn-cc": (0.112, 0.104), "nn-cc+post-sr": (0.0474, 0.0444),
+        "nn-cc+sym": (0.0473, 0.055), "nn-cc+sym+post-sr": (0.0179, 0.0200)}
+    df = pd.read_csv(SCRIPTS_DUFFING)
+    counts = df.groupby("method").size()
+    assert len(counts) == 13 and set(counts) == {610} and (df["status"] == "ok").all()
+    assert set(df["variant"]) == {"scripts"} and set(df["system"]) == {"duffing"}
+    text = re.sub(r"\s+", " ", (ROOT / "docs" / "benchmark.md").read_text(encoding="utf-8"))
+    section = text[text.index("### Duffing on the scripts' system"):text.index("## The two-system full study")]
+    for method in counts.index:
+        a = _a(df, method, eta_max=8.0 if method == "sr" else None)  # SR fitted at eta <= 8, as the paper
+        assert f"| {a[0]:.4f} / {a[1]:.4f} |" in section, method
+        paper = table2.get(method)
+        if method in ("parametric", "poly-cc", "sindy-cc", "sindy-cc+sym"):
+            assert all(abs(ours / theirs - 1) < 0.15 for ours, theirs in zip(a, paper)), (method, a, paper)
+        if method.startswith("nn-cc"):
+            assert all(theirs / ours > 1.25 for ours, theirs in zip(a, paper)), (method, a, paper)
