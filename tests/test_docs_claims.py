@@ -14,6 +14,16 @@ DOCS = sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"]
 FULL = ROOT / "benchmarks" / "results" / "duffing-full" / "results.csv"
 
 
+def _page(name: str) -> str:
+    """A docs page with every run of whitespace made one space (a quoted figure may be wrapped)."""
+    return re.sub(r"\s+", " ", (ROOT / "docs" / name).read_text(encoding="utf-8"))
+
+
+def _section(text: str, start: str, end: str) -> str:
+    """The text from the heading ``start`` up to the heading ``end``."""
+    return text[text.index(start):text.index(end)]
+
+
 @pytest.mark.parametrize("page", DOCS, ids=lambda p: p.name)
 def test_no_page_announces_code_as_planned(page):
     text = page.read_text(encoding="utf-8")
@@ -30,7 +40,7 @@ def test_the_committed_sr_cc_is_the_refit_equal_to_parametric_in_525_of_610_jobs
     equal = int((np.abs(srcc - par) < 1e-6).all(axis=1).sum())
     assert (len(par), equal) == (610, 525)
     for page in ("benchmark.md", "deviations.md"):
-        text = re.sub(r"\s+", " ", (ROOT / "docs" / page).read_text(encoding="utf-8"))
+        text = _page(page)
         assert "525 of" in text and "610" in text, page
 
 
@@ -80,7 +90,7 @@ def test_sr_cc_differs_from_parametric_as_the_papers_does_and_the_refit_does_not
     a_sr, a_par, a_refit = _a(duff, "sr-cc"), _a(duff, "parametric"), _a(duff, "sr-cc+refit")
     assert a_sr[0] > 1.05 * a_par[0] and a_sr[1] > 1.03 * a_par[1]
     assert abs(a_refit[0] / a_par[0] - 1) < 0.25
-    text = re.sub(r"\s+", " ", (ROOT / "docs" / "benchmark.md").read_text(encoding="utf-8"))
+    text = _page("benchmark.md")
     assert f"{equal['sr-cc']} of 610" in text and f"{equal['sr-cc+refit']} of 610" in text
     for a in (a_sr, a_par):
         assert f"{a[0] * 100:.2f} / {a[1] * 100:.2f}" in text
@@ -136,7 +146,7 @@ def test_the_paper_preset_on_the_cpu_is_what_the_docs_say():
     assert default["rmse_f1"].notna().all()
     worse = (paper.set_index(key)[["rmse_f1", "rmse_f2"]] > default[["rmse_f1", "rmse_f2"]]).all(axis=1)
     assert worse.all()  # the paper's protocol is less accurate than the default on each of the 28 records
-    text = re.sub(r"\s+", " ", (ROOT / "docs" / "benchmark.md").read_text(encoding="utf-8"))
+    text = _page("benchmark.md")
     for method in ("nn-cc", "nn-cc+sym"):
         a_paper = _a(paper, method)
         a_default = _a(default.reset_index(), method)
@@ -160,8 +170,8 @@ def test_table_2_on_the_scripts_system_is_what_the_docs_say():
     counts = df.groupby("method").size()
     assert len(counts) == 13 and set(counts) == {610} and (df["status"] == "ok").all()
     assert set(df["variant"]) == {"scripts"} and set(df["system"]) == {"duffing"}
-    text = re.sub(r"\s+", " ", (ROOT / "docs" / "benchmark.md").read_text(encoding="utf-8"))
-    section = text[text.index("### Duffing on the scripts' system"):text.index("## The two-system full study")]
+    text = _page("benchmark.md")
+    section = _section(text, "### Duffing on the scripts' system", "### Stick-slip on the scripts' system")
     for method in counts.index:
         a = _a(df, method, eta_max=8.0 if method == "sr" else None)  # SR fitted at eta <= 8, as the paper
         assert f"| {a[0]:.4f} / {a[1]:.4f} |" in section, method
@@ -188,8 +198,8 @@ def test_table_3_on_the_scripts_system_is_what_the_docs_say():
     failed = df[df["status"] != "ok"]
     assert set(failed["method"]) == {"sindy"} and len(failed) == 4 and (failed["snr_db"] < -15).all()
     assert failed["error"].str.contains("the learned gain is zero or not finite").all()
-    text = re.sub(r"\s+", " ", (ROOT / "docs" / "benchmark.md").read_text(encoding="utf-8"))
-    section = text[text.index("### Stick-slip on the scripts' system"):text.index("## The two-system full study")]
+    text = _page("benchmark.md")
+    section = _section(text, "### Stick-slip on the scripts' system", "## The two-system full study")
     for method, paper in table3.items():
         a = _a(df, method, system="stick-slip")
         assert f"| {a[0]:.4f} / {a[1]:.4f} |" in section, method
