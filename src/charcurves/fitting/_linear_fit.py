@@ -20,6 +20,7 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ..templates import EquationTemplate
 from ._gradient_fit import finish_model
+from ._sr3 import constrained_sr3
 
 __all__ = ["fit_linear", "l0_weight", "column_name"]
 
@@ -254,7 +255,7 @@ def _sparse_fit(template, reps, sparse, D, cols, owners, rows, info, method):
         lam = l0_weight(threshold, first.nu)
         C = np.zeros((1, n_feat))
         C[0, -1] = 1.0
-        opt = ps.ConstrainedSR3(reg_weight_lam=lam, regularizer="l0", relax_coeff_nu=first.nu, tol=first.tol,
+        opt = constrained_sr3(ps, reg_weight_lam=lam, regularizer="l0", relax_coeff_nu=first.nu, tol=first.tol,
                                 max_iter=first.max_iter, constraint_lhs=C, constraint_rhs=np.array([template.gain]),
                                 constraint_order="feature", equality_constraints=True)
         desc = {"optimizer": "ConstrainedSR3", "regularizer": "l0", "threshold": threshold, "reg_weight_lam": lam,
