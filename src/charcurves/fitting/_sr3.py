@@ -22,23 +22,22 @@ __all__ = ["constrained_sr3"]
 @functools.lru_cache(maxsize=4)
 def _subclass(parent: type) -> type:
     class CachedConstrainedSR3(parent):  # type: ignore[misc, valid-type]
-        _cc_key: tuple | None = None
-        _cc_parts: tuple | None = None
+        #: (n_targets, H, constraint_lhs) the products were made from, and (inv(H), lhs^T inv2, lhs inv1_mod)
+        _cache: tuple | None = None
 
         def _update_full_coef_constraints(self, H, x_transpose_y, coef_sparse):
-            n_targets = coef_sparse.shape[1]
-            key = self._cc_key
-            if (key is None or key[0] != n_targets or not np.array_equal(key[1], H)
-                    or not np.array_equal(key[2], self.constraint_lhs)):
+            n_targets, lhs = coef_sparse.shape[1], self.constraint_lhs
+            c = self._cache
+            if c is None or c[0] != n_targets or not np.array_equal(c[1], H) or not np.array_equal(c[2], lhs):
                 inv1 = np.linalg.inv(H)
                 inv1_mod = np.kron(inv1, np.eye(n_targets))
-                inv2 = np.linalg.inv(self.constraint_lhs.dot(inv1_mod).dot(self.constraint_lhs.T))
+                inv2 = np.linalg.inv(lhs.dot(inv1_mod).dot(lhs.T))
                 # pysindy's expression associates left to right: (lhs^T inv2) (...) and (lhs inv1_mod) g
-                self._cc_parts = (inv1, self.constraint_lhs.T.dot(inv2), self.constraint_lhs.dot(inv1_mod))
-                self._cc_key = (n_targets, np.array(H), np.array(self.constraint_lhs))
-            inv1, lhs_t_inv2, lhs_inv1_mod = self._cc_parts
+                c = self._cache = (n_targets, np.array(H), np.array(lhs), inv1, lhs.T.dot(inv2), lhs.dot(inv1_mod))
+            inv1, lhs_t_inv2, lhs_inv1_mod = c[3:]
             g = x_transpose_y + coef_sparse / self.relax_coeff_nu
-            rhs = g.flatten() + lhs_t_inv2.dot(self.constraint_rhs - lhs_inv1_mod.dot(g.flatten()))
+            flat = g.flatten()
+            rhs = flat + lhs_t_inv2.dot(self.constraint_rhs - lhs_inv1_mod.dot(flat))
             return inv1.dot(rhs.reshape(g.shape))
 
     CachedConstrainedSR3.__name__ = CachedConstrainedSR3.__qualname__ = "CachedConstrainedSR3"
@@ -60,7 +59,7 @@ def constrained_sr3(ps, **kwargs):
     ...           constraint_order="feature", equality_constraints=True)
     >>> a = constrained_sr3(ps, **kw).fit(X, y.reshape(-1, 1)).coef_
     >>> b = ps.ConstrainedSR3(**kw).fit(X, y.reshape(-1, 1)).coef_
-    >>> bool(np.array_equal(a, b)), np.round(a, 2).tolist()
+    >>> bool(np.array_equal(a, b)), (np.round(a, 2) + 0.0).tolist()  # + 0.0: no signed zeros
     (True, [[0.5, 0.0, 1.0]])
     """
     return _subclass(ps.ConstrainedSR3)(**kwargs)
