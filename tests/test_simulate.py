@@ -49,6 +49,53 @@ def test_a_diverging_model_ends_with_a_status_not_a_hang():
     assert np.all(np.abs(boxed.x) <= 2.0 + 1e-9)
 
 
+def _sample_by_sample(model, t, x0, v0, forcing, rtol, atol):
+    """The reference: LSODA through scipy.integrate.ode, one integrate() call per sample."""
+    import math
+
+    from scipy.integrate import ode
+
+    from charcurves.simulate import prepare_model_curves
+
+    f1, f2 = prepare_model_curves(model)
+    g, b = float(model.gain), float(model.offset)
+
+    def fun(tt, y):
+        x, v = y.tolist()
+        return [v, g * forcing(tt) - f1.smooth(v) - 0.0 - f2.smooth(x) - b]
+
+    solver = ode(fun).set_integrator("lsoda", rtol=rtol, atol=atol, nsteps=10**9)
+    solver.set_initial_value([x0, v0], t[0])
+    out = [[x0, v0]] + [solver.integrate(float(ti)).copy() for ti in t[1:]]
+    assert solver.successful() and all(math.isfinite(u) for u in out[-1])
+    return np.array(out)
+
+
+@pytest.mark.parametrize("f1, f2", [("0.3*z", "z**3 - z"), ("0.05*z + 0.2*z**3", "0.8*z + 0.5*z**3")])
+def test_a_free_run_has_the_samples_of_lsoda_stepped_sample_by_sample_to_the_last_bit(f1, f2):
+    # simulate_model integrates a run without events in one odeint call; the samples must be the ones
+    # LSODA gives when driven from sample to sample (scipy.integrate.ode), bit for bit
+    model = symbolic_model(f1, f2, gain=1.1, offset=0.01, domain=(-3, 3))
+    t = np.linspace(0.0, 80.0, 2000)
+    forcing = lambda tt: 0.48 * np.cos(1.2 * tt)  # noqa: E731
+    ref = _sample_by_sample(model, t, 0.3, -0.2, forcing, 1e-10, 1e-12)
+    res = simulate_model(model, t, 0.3, -0.2, forcing, rtol=1e-10, atol=1e-12)
+    assert res.ok and res.x.size == t.size
+    assert np.array_equal(res.x, ref[:, 0]) and np.array_equal(res.v, ref[:, 1])
+
+
+def test_a_run_that_leaves_the_box_keeps_the_samples_of_the_unbounded_run_up_to_the_exit():
+    model = symbolic_model("-0.05*z", "z")  # negative damping: the oscillation grows out of the box
+    t = np.linspace(0.0, 60.0, 1200)
+    free = simulate_model(model, t, 0.5, 0.0, lambda tt: 0.0, rtol=1e-10, atol=1e-12)
+    boxed = simulate_model(model, t, 0.5, 0.0, lambda tt: 0.0, rtol=1e-10, atol=1e-12, box={"x": (-1.5, 1.5)})
+    assert free.ok and boxed.status == "left_box"
+    n = boxed.x.size
+    assert 0 < n < t.size and abs(free.x[n]) > 1.5 >= np.max(np.abs(free.x[:n]))
+    assert np.array_equal(boxed.x, free.x[:n]) and np.array_equal(boxed.v, free.v[:n])
+    assert boxed.t_end_reached == pytest.approx(t[n], abs=1e-12)
+
+
 def test_time_budget_stops_a_crawling_simulation():
     # an extremely stiff jump integrated as it is (no events) makes the solver crawl; the budget ends it
     model = symbolic_model("0.3*z + tanh(1e9*z)", "z")

@@ -98,6 +98,58 @@ def test_polish_constants_makes_coefficients_precise():
     assert mse < 1e-20
 
 
+def test_polishing_inner_constants_keeps_sympys_cache_and_builds_the_unevaluated_tree(monkeypatch):
+    # switching sympy's global evaluate flag clears its whole cache; the selection polishes hundreds of
+    # candidates a fit, so the polish must not switch it (and must give the tree evaluate(False) gives)
+    import sympy.core.parameters as parameters
+
+    from charcurves.symbolic._expressions import xreplace_unevaluated
+
+    clears = []
+    real_clear = parameters.clear_cache
+    monkeypatch.setattr(parameters, "clear_cache", lambda: (clears.append(1), real_clear())[1])
+    z = np.linspace(-1, 1, 400)
+    expr = sp.Float(0.7) * sp.tanh(sp.Float(2.5) * Z) + sp.Float(0.2) * Z
+    out, mse = polish_constants(expr, [Z], z[:, None], 0.9 * np.tanh(4.0 * z) + 0.3 * z, canonical=False)
+    assert clears == []
+    assert mse < 1e-18 and float(out.subs(Z, 0.5)) == pytest.approx(0.9 * np.tanh(2.0) + 0.15, rel=1e-9)
+    c = sp.Symbol("c")
+    mapping = {sp.Float(2.5): c, sp.Float(0.7): sp.Float(-0.7)}
+    with sp.core.parameters.evaluate(False):
+        expected = expr.xreplace(mapping)
+    assert len(clears) == 2  # the context manager itself clears on the way in and out
+    got = xreplace_unevaluated(expr, mapping)
+    assert sp.srepr(got) == sp.srepr(expected) and got != expr.xreplace(mapping)
+
+
+def test_nested_tanh_is_rebuilt_and_expanded_without_sympys_polynomial_gcd(monkeypatch):
+    # with plain symbols, rebuilding tanh(long argument) asks sympy whether the argument is real, which it
+    # answers through Mod and a polynomial gcd of the expanded imaginary part (minutes on some SR fronts);
+    # the selection works on real twins of the variables instead: the same tree, no gcd
+    import sympy.polys.polytools as polytools
+
+    from charcurves.symbolic._expressions import canonical, reevaluate
+
+    def plain_rebuild(e):
+        return e.func(*[plain_rebuild(a) for a in e.args]) if e.args else e
+
+    F = sp.Float
+    with sp.core.parameters.evaluate(False):
+        raw = F(0.81) * sp.tanh(F(3.1) * Z * (Z + F(0.7) * sp.tanh(F(2.3) * Z**2 - F(1.1) * Z))
+                                + F(0.4) * sp.tanh(F(-5.2) * Z + F(0.3) * Z**3)) + F(0.2) * Z
+    expected_rebuilt = plain_rebuild(raw)
+    expected_expanded = sp.expand(expected_rebuilt, power_exp=False, power_base=False, log=False)
+    gcds = []
+    real_gcd = polytools.gcd
+    monkeypatch.setattr(polytools, "gcd", lambda *a, **k: (gcds.append(1), real_gcd(*a, **k))[1])
+    rebuilt = reevaluate(raw)
+    expanded = canonical(rebuilt)
+    assert gcds == []
+    assert rebuilt == expected_rebuilt and expanded == expected_expanded
+    assert rebuilt.free_symbols == expanded.free_symbols == {Z}  # the caller's symbols, not the real twins
+    assert float(expanded.subs(Z, 0.3)) == pytest.approx(float(raw.subs(Z, 0.3)), rel=1e-14)
+
+
 def test_decompose_splits_and_flags_mixed_terms():
     x, v = sp.symbols("x v")
     parts, const, mixed = decompose(0.3 * v + x**3 - x + 0.2 + 0.1 * x * v, {"f1": v, "f2": x})

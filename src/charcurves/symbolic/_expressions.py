@@ -67,10 +67,18 @@ def canonical(expr):
     """
     import sympy as sp
 
+    # expanded on real symbols of the same names (the variables are real), as parse_infix parses: with
+    # plain symbols, rebuilding tanh(long argument) asks whether the argument is real, which sympy may
+    # answer by a gcd of polynomials in its expanded imaginary part (one stick-slip SR-CC job of the
+    # scripts' study spent 10 minutes there); names sort alike, so the canonical order is kept
+    real = _real_twins(expr)
     try:
-        out = sp.expand(expr, power_exp=False, power_base=False, log=False)
+        out = sp.expand(xreplace_unevaluated(expr, real) if real else expr, power_exp=False, power_base=False,
+                        log=False)
     except Exception:  # pragma: no cover - sympy failures on exotic trees
-        out = expr
+        return expr
+    if real:
+        out = xreplace_unevaluated(out, {r: s for s, r in real.items()})
     # sympy keeps exact 1.0 factors as Floats: fold Float(1)*b into b only via the term split
     return out
 
@@ -161,9 +169,57 @@ def reevaluate(expr):
     >>> reevaluate(raw)
     -2.0*tanh(3.0*z)
     """
+    # evaluated on real symbols of the same names, as canonical() expands (see there): with plain ones,
+    # rebuilding tanh(long argument) may take minutes in sympy's realness queries
+    real = _real_twins(expr)
+    out = _rebuild(xreplace_unevaluated(expr, real) if real else expr)
+    return xreplace_unevaluated(out, {r: s for s, r in real.items()}) if real else out
+
+
+def _rebuild(expr):
     if not expr.args:
         return expr
-    return expr.func(*[reevaluate(a) for a in expr.args])
+    return expr.func(*[_rebuild(a) for a in expr.args])
+
+
+def _real_twins(expr) -> dict:
+    """Plain symbols of ``expr`` -> real symbols of the same names (the variables are real)."""
+    import sympy as sp
+
+    return {s: sp.Symbol(s.name, real=True) for s in expr.free_symbols
+            if isinstance(s, sp.Symbol) and s.is_real is not True}
+
+
+def xreplace_unevaluated(expr, mapping):
+    """``expr.xreplace(mapping)`` with the changed nodes rebuilt without sympy's evaluation.
+
+    The same tree as ``xreplace`` inside ``sympy.core.parameters.evaluate(False)``, without
+    switching that global flag: every switch clears sympy's whole cache (``clear_cache``), and the
+    selection, which polishes hundreds of candidates a fit, then recomputed the assumptions of
+    every expression it had seen (a third of its time on noisy stick-slip records).
+
+    Examples
+    --------
+    >>> import sympy as sp
+    >>> from charcurves.symbolic._expressions import xreplace_unevaluated
+    >>> z, c = sp.symbols("z c")
+    >>> xreplace_unevaluated(2.0 * sp.tanh(3.0 * z), {sp.Float(3.0): c, sp.Float(2.0): sp.Float(-1.0)})
+    -1.0*tanh(c*z)
+    """
+    if expr in mapping:
+        return mapping[expr]
+    if not expr.args:
+        return expr
+    args = [xreplace_unevaluated(a, mapping) for a in expr.args]
+    if all(new is old for new, old in zip(args, expr.args)):
+        return expr
+    try:
+        return expr.func(*args, evaluate=False)
+    except TypeError:  # pragma: no cover - a node without the keyword (none among the search's operators)
+        import sympy as sp
+
+        with sp.core.parameters.evaluate(False):
+            return expr.func(*args)
 
 
 def polish_constants(expr, symbols, X, y, *, max_nfev: int = 200, canonical: bool = True):
@@ -214,8 +270,7 @@ def polish_constants(expr, symbols, X, y, *, max_nfev: int = 200, canonical: boo
     params = sp.symbols(f"__c0:{len(consts)}")
     # the template is only compiled, never shown: building it unevaluated skips sympy's
     # canonicalisation (assumption queries on every nested tanh: most of a polish's time)
-    with sp.core.parameters.evaluate(False):
-        template = expr.xreplace(dict(zip(consts, params)))
+    template = xreplace_unevaluated(expr, dict(zip(consts, params)))
     f = lambdify_numpy(template, list(symbols) + list(params))
     cols = [X[:, i] for i in range(X.shape[1])]
     p0 = np.array([float(c) for c in consts])
@@ -232,8 +287,8 @@ def polish_constants(expr, symbols, X, y, *, max_nfev: int = 200, canonical: boo
     # a polish that cannot win (beyond the rounding of its constants to 15 digits) is not built
     if not float(np.mean(resid(sol.x) ** 2)) <= mse0 * (1.0 + 1e-6):
         return expr, mse0
-    with sp.core.parameters.evaluate(bool(canonical)):
-        new = expr.xreplace({c: sp.Float(v, 15) for c, v in zip(consts, sol.x)})
+    values = {c: sp.Float(v, 15) for c, v in zip(consts, sol.x)}
+    new = expr.xreplace(values) if canonical else xreplace_unevaluated(expr, values)
     vals = eval_expression(new, symbols, X)
     if vals is None:
         return expr, mse0
@@ -332,5 +387,4 @@ def parse_infix(text: str, symbols: Sequence) -> Any:
     expr = parse_expr(text.replace("^", "**"), local_dict=local,
                       global_dict={"Integer": sp.Integer, "Float": sp.Float, "Rational": sp.Rational},
                       transformations=standard_transformations, evaluate=True)
-    with sp.core.parameters.evaluate(False):
-        return expr.xreplace({r: s for s, r in real.items()})
+    return xreplace_unevaluated(expr, {r: s for s, r in real.items()})
