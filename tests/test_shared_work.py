@@ -230,8 +230,9 @@ def test_stacked_duffing_draws_give_the_cases_of_single_draws():
 
 # ---------------------------------------------------------------------------- LSODA from sample to sample
 def test_lsoda_sample_to_sample_gives_the_trajectory_and_failures_of_stepping(monkeypatch):
-    """A run without events goes by scipy.integrate.ode from sample to sample; it must give the stepped
-    LSODA's trajectory to the tolerances, and stop with the same status where the model runs away."""
+    """A run without events goes by LSODA over its samples (odeint, or scipy.integrate.ode from sample to
+    sample where it stops early); it must give the stepped LSODA's trajectory to the tolerances, and stop
+    with the same status where the model runs away."""
     import charcurves.simulate._forward as forward
 
     t = np.linspace(0.0, 60.0, 1201)

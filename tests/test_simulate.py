@@ -72,14 +72,20 @@ def _sample_by_sample(model, t, x0, v0, forcing, rtol, atol):
 
 
 @pytest.mark.parametrize("f1, f2", [("0.3*z", "z**3 - z"), ("0.05*z + 0.2*z**3", "0.8*z + 0.5*z**3")])
-def test_a_free_run_has_the_samples_of_lsoda_stepped_sample_by_sample_to_the_last_bit(f1, f2):
+def test_a_free_run_has_the_samples_of_lsoda_stepped_sample_by_sample_to_the_last_bit(f1, f2, monkeypatch):
     # simulate_model integrates a run without events in one odeint call; the samples must be the ones
     # LSODA gives when driven from sample to sample (scipy.integrate.ode), bit for bit
+    import charcurves.simulate._forward as forward
+
     model = symbolic_model(f1, f2, gain=1.1, offset=0.01, domain=(-3, 3))
     t = np.linspace(0.0, 80.0, 2000)
     forcing = lambda tt: 0.48 * np.cos(1.2 * tt)  # noqa: E731
     ref = _sample_by_sample(model, t, 0.3, -0.2, forcing, 1e-10, 1e-12)
+    one_call = []
+    real = forward._Run.free_odeint
+    monkeypatch.setattr(forward._Run, "free_odeint", lambda self, *a: one_call.append(real(self, *a)) or one_call[-1])
     res = simulate_model(model, t, 0.3, -0.2, forcing, rtol=1e-10, atol=1e-12)
+    assert one_call == [True]  # the odeint path ran to the end (no fallback to the reference's own path)
     assert res.ok and res.x.size == t.size
     assert np.array_equal(res.x, ref[:, 0]) and np.array_equal(res.v, ref[:, 1])
 
@@ -94,6 +100,27 @@ def test_a_run_that_leaves_the_box_keeps_the_samples_of_the_unbounded_run_up_to_
     assert 0 < n < t.size and abs(free.x[n]) > 1.5 >= np.max(np.abs(free.x[:n]))
     assert np.array_equal(boxed.x, free.x[:n]) and np.array_equal(boxed.v, free.v[:n])
     assert boxed.t_end_reached == pytest.approx(t[n], abs=1e-12)
+
+
+@pytest.mark.parametrize("box", [{"x": np.array([-1.5, 1.5])}, {"v": (-1.2, 1.2)}])
+def test_a_box_given_as_an_array_or_on_the_velocity_alone_stops_the_run_at_the_first_sample_outside(box):
+    model = symbolic_model("-0.05*z", "z")
+    t = np.linspace(0.0, 60.0, 1200)
+    free = simulate_model(model, t, 0.5, 0.0, lambda tt: 0.0, rtol=1e-10, atol=1e-12)
+    boxed = simulate_model(model, t, 0.5, 0.0, lambda tt: 0.0, rtol=1e-10, atol=1e-12, box=box)
+    name, (lo, hi) = next(iter(box.items()))
+    values = free.x if name == "x" else free.v
+    n = int(np.argmax((values < lo) | (values > hi)))
+    assert boxed.status == "left_box" and boxed.x.size == n > 0
+    assert np.array_equal(boxed.x, free.x[:n]) and np.array_equal(boxed.v, free.v[:n])
+
+
+def test_an_lsoda_run_out_of_time_says_how_far_it_got():
+    model = symbolic_model("0.01*z", "z**3 - z")
+    t = np.linspace(0.0, 1e6, 2000)  # a million seconds at tight tolerances: far more than the budget
+    res = simulate_model(model, t, 0.5, 0.0, sinusoidal_forcing(0.3, 1.2), rtol=1e-12, atol=1e-14, time_budget=1.0)
+    assert res.status == "timeout" and res.x.size == 0
+    assert 0.0 < res.t_end_reached < 1e6 and f"ran out at t = {res.t_end_reached:.4g}" in res.message
 
 
 def test_time_budget_stops_a_crawling_simulation():

@@ -142,12 +142,31 @@ def test_nested_tanh_is_rebuilt_and_expanded_without_sympys_polynomial_gcd(monke
     gcds = []
     real_gcd = polytools.gcd
     monkeypatch.setattr(polytools, "gcd", lambda *a, **k: (gcds.append(1), real_gcd(*a, **k))[1])
+    sp.core.cache.clear_cache()
+    assert plain_rebuild(raw) == expected_rebuilt and gcds  # the control: on plain symbols sympy takes gcds
+    gcds.clear()
+    sp.core.cache.clear_cache()
     rebuilt = reevaluate(raw)
     expanded = canonical(rebuilt)
     assert gcds == []
     assert rebuilt == expected_rebuilt and expanded == expected_expanded
     assert rebuilt.free_symbols == expanded.free_symbols == {Z}  # the caller's symbols, not the real twins
     assert float(expanded.subs(Z, 0.3)) == pytest.approx(float(raw.subs(Z, 0.3)), rel=1e-14)
+
+
+def test_the_canonical_form_applies_real_variable_rules_and_leaves_symbols_with_assumptions_alone():
+    from charcurves.symbolic._expressions import canonical, reevaluate
+
+    # the variables are real: rebuilt with evaluation, sqrt(z**2) is |z| (as parse_infix already read the
+    # search's output); the expansion rebuilds only what it expands
+    with sp.core.parameters.evaluate(False):
+        root = sp.sqrt(Z**2)
+    assert reevaluate(root) == sp.Abs(Z) and reevaluate(root).free_symbols == {Z}
+    assert canonical(sp.Float(2.0) * Z * (Z + sp.Float(0.5))) == sp.Float(2.0) * Z**2 + sp.Float(1.0) * Z
+    p = sp.Symbol("p", positive=True)
+    w = sp.Symbol("w", complex=True)
+    assert canonical(sp.sqrt(w**2) + p) == sp.sqrt(w**2) + p  # not twinned: sympy's own treatment
+    assert canonical(sp.sqrt(w**2) + p).free_symbols == {p, w}
 
 
 def test_decompose_splits_and_flags_mixed_terms():

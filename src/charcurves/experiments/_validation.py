@@ -473,9 +473,9 @@ def _batched_runs(model, cases, time_budget, max_failed, method, rtol, atol, cas
     if len(cases) < 2 or time_budget is not None or max_failed is not None or any(c.x_true is None for c in cases):
         return None
     if getattr(solver_class(method), "__name__", "") == "LSODA":
-        # one LSODA run per case goes from sample to sample in Fortran (simulate_model), which measured
-        # faster than the stacked run: 4.0 s against 5.4 s for the ten cases of 24 fitted models of both
-        # systems (Duffing networks 0.14 s against 0.42 s a model), 9.7 s stepping case by case
+        # one LSODA run per case (simulate_model: one odeint call over its samples) measured faster than
+        # the stacked run even from sample to sample: 4.0 s against 5.4 s for the ten cases of 24 fitted
+        # models of both systems (Duffing networks 0.14 s against 0.42 s a model), 9.7 s stepping
         return None
     if len({(c.t_end, c.n_points) for c in cases}) > 1:
         return None

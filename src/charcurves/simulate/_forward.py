@@ -8,15 +8,16 @@ stick-slip event loop exceeded its number of switches).
 
 The solver is driven step by step (scipy's ``OdeSolver`` classes), so every accepted step is
 checked against the state bounds and the time budget, and the samples computed before a
-failure are kept; a run without events with LSODA (the default) goes from sample to sample
-instead (``scipy.integrate.ode``: no Python work per internal step), checked at every sample. A velocity curve with a jump at 0 (dry friction) is integrated with events:
+failure are kept; a run without events with LSODA (the default) is one ``scipy.integrate.odeint``
+call over all samples instead (no Python work per internal step or per sample), run again from sample
+to sample (``scipy.integrate.ode``, checked at every sample) where it leaves its bounds or fails, to
+say where and why it stopped. A velocity curve with a jump at 0 (dry friction) is integrated with events:
 slip phases with a fixed friction direction, sticking phases with ``x' = 0`` while the net
 force stays within the friction limit (see ``docs/simulation.md``).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -25,89 +26,10 @@ import numpy as np
 
 from .._errors import ConfigError
 from ._curve_eval import PreparedCurve, prepare_curve
+from ._result import STATUSES, SimulationResult, _Stop, sinusoidal_forcing, solver_class
 
 __all__ = ["SimulationResult", "simulate_model", "sinusoidal_forcing", "prepare_model_curves", "STATUSES",
            "solver_class"]
-
-STATUSES = ("ok", "left_box", "diverged", "timeout", "solver_failed")
-
-_SOLVERS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
-
-
-@dataclasses.dataclass
-class SimulationResult:
-    """Samples of a forward simulation.
-
-    After "left_box", "diverged" or "solver_failed" the samples stop before ``t_end_reached``;
-    after "timeout" there are none (a run cut short by the clock says nothing about the model).
-    ``switches`` counts stick/slip transitions (0 without a jump); ``details`` records how the
-    curves were evaluated (``"f1"``/``"f2"``: "exact" or "tabulated"), the jump height used for
-    events and the time spent sticking.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> import charcurves as cc
-    >>> from charcurves.simulate import SimulationResult, simulate_model, sinusoidal_forcing
-    >>> from charcurves.systems import get_system
-    >>> system = get_system("duffing")
-    >>> model = cc.fit(system.simulate(), method="parametric")
-    >>> forcing = sinusoidal_forcing(system.A, system.Omega)
-    >>> res = simulate_model(model, np.linspace(0, 20, 401), system.x0, system.v0, forcing)
-    >>> isinstance(res, SimulationResult), res.ok, res.x.shape, res.details["f1"]
-    (True, True, (401,), 'exact')
-    """
-
-    t: np.ndarray
-    x: np.ndarray
-    v: np.ndarray
-    status: str
-    message: str = ""
-    t_end_reached: float = float("nan")
-    seconds: float = 0.0
-    switches: int = 0
-    details: dict = dataclasses.field(default_factory=dict)
-
-    @property
-    def ok(self) -> bool:
-        return self.status == "ok"
-
-
-class _Stop(Exception):
-    def __init__(self, status: str, message: str, t: float):
-        super().__init__(message)
-        self.status, self.message, self.t = status, message, t
-
-
-def sinusoidal_forcing(A: float, Omega: float) -> Callable[[float], float]:
-    """F(t) = A cos(Ω t) (vectorised).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from charcurves.simulate import sinusoidal_forcing
-    >>> F = sinusoidal_forcing(2.0, 0.5)
-    >>> float(F(0.0)), F(np.array([0.0, np.pi])).round(6).tolist()
-    (2.0, [2.0, 0.0])
-    """
-    return lambda t: A * np.cos(Omega * t)
-
-
-def solver_class(method):
-    """The scipy ``OdeSolver`` class of a method name (or the class itself); ConfigError for others.
-
-    Examples
-    --------
-    >>> from charcurves.simulate import solver_class
-    >>> solver_class("RK45").__name__, solver_class("LSODA").__name__
-    ('RK45', 'LSODA')
-    """
-    import scipy.integrate as si
-
-    cls = getattr(si, method, None) if isinstance(method, str) and method in _SOLVERS else method
-    if not (isinstance(cls, type) and issubclass(cls, si.OdeSolver)):
-        raise ConfigError(f"unknown solver method {method!r}; choose one of {', '.join(_SOLVERS)}")
-    return cls
 
 
 def prepare_model_curves(model, *, evaluation: str = "auto", jump: str = "auto",
@@ -158,6 +80,14 @@ class _Output:
         if end > self.filled:
             self.x[self.filled:end], self.v[self.filled:end] = x, 0.0
             self.filled = end
+
+
+class _Leave(Exception):
+    """Raised by the odeint right-hand side to end the run: ``kind`` "state" or "time", at ``t``."""
+
+    def __init__(self, kind: str, t: float):
+        super().__init__(kind)
+        self.kind, self.t = kind, float(t)
 
 
 class _Run:
@@ -286,33 +216,44 @@ class _Run:
 
         odeint drives the same LSODA as ``scipy.integrate.ode`` with the same settings and the same
         output times, so the samples are the same to the last bit, without a Python call per sample
-        (about half the time of a validation case). The checks cannot stop odeint, so a state out of
-        bounds or a spent budget at any right-hand-side call freezes the run (zero derivatives, so
-        LSODA ends it at once), and then, as after a solver failure or a sample outside the box,
-        :meth:`free_lsoda` runs the case again and reports where and why it stopped."""
-        from scipy.integrate import odeint
+        (about half the time of a validation case). A state out of bounds or a spent budget at a
+        right-hand-side call raises there, which ends odeint at once. A spent budget ends the run as
+        "timeout" at that time; after a state out of bounds, a solver failure, an exception or a sample
+        outside the bounds, :meth:`free_lsoda` runs the case again from sample to sample and reports
+        where and why it stopped (such a run costs up to twice its time, within the same budget)."""
+        import warnings
+
+        from scipy.integrate import ODEintWarning, odeint
 
         out = self.out
         if out.filled or out.t.size < 2 or float(out.t[0]) != t0:
             return False
         f1, f2, g, b, forcing = self.f1.smooth, self.f2.smooth, self.g, self.b, self.forcing
         jump, m, clock, deadline = self.mu * 0, self.max_abs, time.monotonic, self.deadline
-        (x_lo, x_hi), (v_lo, v_hi) = self.xb or (-m, m), self.vb or (-m, m)
-        frozen: list[float] = []
+        x_lo, x_hi = (max(-m, self.xb[0]), min(m, self.xb[1])) if self.xb is not None else (-m, m)
+        v_lo, v_hi = (max(-m, self.vb[0]), min(m, self.vb[1])) if self.vb is not None else (-m, m)
 
         def fun(t, y):
-            if frozen:
-                return [0.0, 0.0]
             x, v = y.tolist()
-            if not (-m <= x <= m and -m <= v <= m and x_lo <= x <= x_hi and v_lo <= v <= v_hi) \
-                    or clock() > deadline:
-                frozen.append(t)
-                return [0.0, 0.0]
+            if not (x_lo <= x <= x_hi and v_lo <= v <= v_hi):  # NaN fails every comparison
+                raise _Leave("state", t)
+            if clock() > deadline:
+                raise _Leave("time", t)
             return [v, g * forcing(t) - f1(v) - jump - f2(x) - b]
 
-        y, info = odeint(fun, [x0, v0], out.t, tfirst=True, rtol=self.rtol, atol=self.atol, mxstep=10**9,
-                         full_output=True)
-        if frozen or info["message"] != "Integration successful.":
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ODEintWarning)  # a failure is run again and reported there
+                y, info = odeint(fun, [x0, v0], out.t, tfirst=True, rtol=self.rtol, atol=self.atol,
+                                 mxstep=10**9, full_output=True)
+        except _Leave as leave:  # odeint returns as soon as the right-hand side raises
+            if leave.kind == "time":
+                raise _Stop("timeout", f"the time budget of {self.time_budget:g} s ran out at t = {leave.t:.4g}",
+                            leave.t) from None
+            return False
+        except Exception:  # noqa: BLE001 - a curve or forcing that raises: the sample-by-sample run says where
+            return False
+        if info["message"] != "Integration successful.":
             return False
         x, v = y[:, 0], y[:, 1]
         if not (np.all((x >= x_lo) & (x <= x_hi)) and np.all((v >= v_lo) & (v <= v_hi))):
@@ -321,11 +262,10 @@ class _Run:
         return True
 
     def free_lsoda(self, t0: float, x0: float, v0: float) -> None:
-        """A run without events, by LSODA from sample to sample (``scipy.integrate.ode``): the solver
-        steps in Fortran between samples, with no Python work per step (about twice as fast as
-        stepping through ``scipy.integrate.LSODA`` for the 2 000 samples of a validation case; the
-        same trajectory to the tolerances). The state is checked at every sample, and at every
-        right-hand-side call as in stepping ("diverged", "timeout")."""
+        """A run without events by LSODA: :meth:`free_odeint` when it completes, else from sample to
+        sample (``scipy.integrate.ode``: the solver steps in Fortran between samples, about twice as
+        fast as stepping through ``scipy.integrate.LSODA``), with the state checked at every sample and
+        at every right-hand-side call ("diverged", "timeout")."""
         from scipy.integrate import ode
 
         if self.free_odeint(t0, x0, v0):

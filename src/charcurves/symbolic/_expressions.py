@@ -70,7 +70,9 @@ def canonical(expr):
     # expanded on real symbols of the same names (the variables are real), as parse_infix parses: with
     # plain symbols, rebuilding tanh(long argument) asks whether the argument is real, which sympy may
     # answer by a gcd of polynomials in its expanded imaginary part (one stick-slip SR-CC job of the
-    # scripts' study spent 10 minutes there); names sort alike, so the canonical order is kept
+    # scripts' study spent 10 minutes there); names sort alike, so the canonical order is kept. Trees of
+    # + - * and tanh come out as on plain symbols; where sympy rebuilds a node of sqrt, abs, exp or log,
+    # real-variable rules apply (sqrt(z**2) -> Abs(z)), as when parse_infix read the search's output
     real = _real_twins(expr)
     try:
         out = sp.expand(xreplace_unevaluated(expr, real) if real else expr, power_exp=False, power_base=False,
@@ -183,11 +185,19 @@ def _rebuild(expr):
 
 
 def _real_twins(expr) -> dict:
-    """Plain symbols of ``expr`` -> real symbols of the same names (the variables are real)."""
+    """Plain symbols of ``expr`` -> real symbols of the same names (the variables are real).
+
+    Empty (work on the symbols as they are) unless every free symbol is a plain ``Symbol`` with a
+    name of its own: a symbol with assumptions, a Dummy or two symbols sharing a name keep sympy's
+    own treatment, and the canonical order, which compares symbols' assumptions, stays as it was.
+    """
     import sympy as sp
 
-    return {s: sp.Symbol(s.name, real=True) for s in expr.free_symbols
-            if isinstance(s, sp.Symbol) and s.is_real is not True}
+    symbols = expr.free_symbols
+    plain = all(type(s) is sp.Symbol and s.assumptions0 == {"commutative": True} for s in symbols)
+    if not plain or len({s.name for s in symbols}) != len(symbols):
+        return {}
+    return {s: sp.Symbol(s.name, real=True) for s in symbols}
 
 
 def xreplace_unevaluated(expr, mapping):
@@ -288,7 +298,13 @@ def polish_constants(expr, symbols, X, y, *, max_nfev: int = 200, canonical: boo
     if not float(np.mean(resid(sol.x) ** 2)) <= mse0 * (1.0 + 1e-6):
         return expr, mse0
     values = {c: sp.Float(v, 15) for c, v in zip(consts, sol.x)}
-    new = expr.xreplace(values) if canonical else xreplace_unevaluated(expr, values)
+    if not canonical:
+        new = xreplace_unevaluated(expr, values)
+    elif sp.core.parameters.global_parameters.evaluate:
+        new = expr.xreplace(values)
+    else:  # a caller inside evaluate(False) still gets the canonical form it asked for
+        with sp.core.parameters.evaluate(True):
+            new = expr.xreplace(values)
     vals = eval_expression(new, symbols, X)
     if vals is None:
         return expr, mse0
