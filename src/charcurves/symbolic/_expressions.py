@@ -73,14 +73,10 @@ def canonical(expr):
     # scripts' study spent 10 minutes there); names sort alike, so the canonical order is kept. Trees of
     # + - * and tanh come out as on plain symbols; where sympy rebuilds a node of sqrt, abs, exp or log,
     # real-variable rules apply (sqrt(z**2) -> Abs(z)), as when parse_infix read the search's output
-    real = _real_twins(expr)
     try:
-        out = sp.expand(xreplace_unevaluated(expr, real) if real else expr, power_exp=False, power_base=False,
-                        log=False)
+        out = _on_real_symbols(expr, lambda e: sp.expand(e, power_exp=False, power_base=False, log=False))
     except Exception:  # pragma: no cover - sympy failures on exotic trees
         return expr
-    if real:
-        out = xreplace_unevaluated(out, {r: s for s, r in real.items()})
     # sympy keeps exact 1.0 factors as Floats: fold Float(1)*b into b only via the term split
     return out
 
@@ -173,15 +169,22 @@ def reevaluate(expr):
     """
     # evaluated on real symbols of the same names, as canonical() expands (see there): with plain ones,
     # rebuilding tanh(long argument) may take minutes in sympy's realness queries
-    real = _real_twins(expr)
-    out = _rebuild(xreplace_unevaluated(expr, real) if real else expr)
-    return xreplace_unevaluated(out, {r: s for s, r in real.items()}) if real else out
+    return _on_real_symbols(expr, _rebuild)
 
 
 def _rebuild(expr):
     if not expr.args:
         return expr
     return expr.func(*[_rebuild(a) for a in expr.args])
+
+
+def _on_real_symbols(expr, transform):
+    """``transform(expr)`` with its plain symbols swapped for real twins and swapped back unevaluated."""
+    real = _real_twins(expr)
+    if not real:
+        return transform(expr)
+    out = transform(xreplace_unevaluated(expr, real))
+    return xreplace_unevaluated(out, {r: s for s, r in real.items()})
 
 
 def _real_twins(expr) -> dict:
