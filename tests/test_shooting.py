@@ -183,3 +183,68 @@ def test_monomial_basis_features_and_derivatives_from_one_power_table(basis):
     assert torch.allclose(phi, expected, rtol=1e-14, atol=0) and torch.allclose(dphi, d_expected, rtol=1e-14, atol=0)
     assert bool(torch.isfinite(dphi).all())
     assert [float(d) for d in dphi[0, 2]] == [1.0 if k == 1 else 0.0 for k in powers]  # at z = 0
+
+
+def test_output_error_settles_the_evidence_of_spare_terms_in_few_steps(monkeypatch):
+    """A polynomial curve's spare terms are pruned by the evidence (automatic relevance determination).
+    One MacKay update per Levenberg-Marquardt step moved each spare term's decay by a bounded factor,
+    so output error spent some twenty steps (one free run each) after fitting the record; iterating
+    the evidence on the linearised problem once the record is fitted (``EVIDENCE_SWEEPS``) ends in
+    under half the steps with the same curves, the true Duffing terms kept and the others at zero."""
+    import charcurves.fitting._output_error as oe
+    from charcurves.metrics import curve_errors
+
+    torch.set_num_threads(1)
+    system = get_system("duffing")
+    rec = corrupt(system.simulate(n_points=400, t_end=16), 40, on="state", seed=1)
+    fits, default = {}, oe.EVIDENCE_SWEEPS
+    for sweeps in (default, 0):
+        monkeypatch.setattr(oe, "EVIDENCE_SWEEPS", sweeps)
+        fits[sweeps] = cc.CharacteristicCurves(method="poly-cc", objective="auto", random_state=0, threads=1).fit(rec).model_
+    settled, stepwise = fits[default], fits[0]
+    its = settled.info["output_error"]["iterations"], stepwise.info["output_error"]["iterations"]
+    assert default > 0 and its[0] <= 0.5 * its[1], its
+    assert settled.info["output_error"]["evidence_sweeps_undone"] == 0
+    for model in (settled, stepwise):
+        errors = curve_errors(model, system.true_curves())
+        assert max(errors.values()) < 1e-3, errors  # equation error on this record: about 2e-2
+    z = np.linspace(-1.5, 1.5, 61)
+    for name in ("f1", "f2"):
+        assert np.abs(settled.curves[name](z) - stepwise.curves[name](z)).max() < 1e-6
+    coef = dict(zip(settled.info["output_error"]["parameters"], settled.info["output_error"]["coefficients_after"]))
+    kept = {"f1:z": 0.3, "f2:z": -1.0, "f2:z**3": 1.0}  # the true curves: 0.3 v and -x + x^3
+    for label, value in coef.items():
+        if label in kept:
+            assert abs(value - kept[label]) < 3e-3, (label, value)
+        elif label.startswith(("f1:", "f2:")):
+            assert abs(value) < 1e-4, (label, value)
+
+
+@pytest.mark.parametrize("family, relevance", [("separable", False), ("position-damping", True)])
+def test_only_single_coefficients_are_relevance_groups(family, relevance, monkeypatch):
+    """The evidence sweeps of output error touch the decays of single coefficients (a polynomial's
+    terms: automatic relevance determination), never a network's weight groups: iterated on the
+    linearised problem those settled at decays that held van der Pol fits far from the record."""
+    import charcurves.fitting._output_error as oe
+    import charcurves.fitting._train as tr
+
+    torch.set_num_threads(1)
+    captured = {}
+    real = tr.train
+
+    def capture(problem, theta0, **kw):
+        captured["problem"] = problem
+        kw["lm_max_iter"] = 1
+        return real(problem, theta0, **kw)
+
+    monkeypatch.setattr(tr, "train", capture)
+    rec, est = _case(family)
+    models, prepared = raw_fit(est, [rec], [0])
+    oe.output_error_fit(models[0], prepared[0], rec, OutputError(segment_length=40), preset=get_preset("default"))
+    p = captured["problem"]
+    labels = [label for _, label in p.decay_group_parts]
+    assert p.relevance_groups.tolist() == [relevance] * len(labels), labels
+    if relevance:  # van der Pol's two degree-4 polynomials: one group per coefficient
+        assert len(labels) == sum(b.n_params for b in p.blocks) and p.n_decay_groups == len(labels)
+    else:
+        assert any(label.startswith("layer") for label in labels)

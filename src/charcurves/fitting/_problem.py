@@ -32,6 +32,10 @@ __all__ = ["CurveTerm", "BatchedProblem", "LeastSquaresProblem", "DECAY_GROUPS"]
 
 DECAY_GROUPS = ("shared", "per-curve", "per-layer")
 
+#: Decay groups whose label starts with this hold one coefficient of a linear or closed-form curve
+#: (automatic relevance determination, e.g. output error's ``_Ridge``); see ``relevance_groups``.
+RELEVANCE_LABEL = "coefficient "
+
 #: bytes of one chunk's Jacobian in the normal equations of long records
 CHUNK_BYTES = 32 * 2**20
 #: records up to this length keep each mirrored curve's input ``cat([u, -u])`` precomputed
@@ -105,6 +109,9 @@ class LeastSquaresProblem:
         # each group as (term index or None for all terms, what part of that term's parameters)
         self.decay_group_parts = parts
         self.n_decay_groups = len(parts)
+        # which groups are one coefficient's relevance (ARD), as opposed to a network's weights
+        self.relevance_groups = torch.tensor([label.startswith(RELEVANCE_LABEL) for _, label in parts],
+                                             dtype=torch.bool, device=self.y.device)
         self.decay_group = group[decay].to(self.y.device) if use_decay else None  # (m,) group of each decayed weight
         self.set_weight_decay(self.weight_decay)
 

@@ -152,7 +152,7 @@ class ShootingProblem(ShootingODE, LeastSquaresProblem):
         self.weight_decay = weight_decay
         self.bayesian = bayesian
         # coefficients of physical size (closed forms, polynomials): the evidence starts from a decay
-        # scaled to them (see _train._initial_decay)
+        # scaled to them (see _evidence.initial_decay)
         self.scaled_initial_decay = True
         self.decay_groups = decay_groups
         self._setup_decay([(self.block_offsets[i], b.param) for i, b in enumerate(blocks)], self.n_params)

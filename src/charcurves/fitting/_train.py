@@ -16,6 +16,8 @@ from typing import TYPE_CHECKING
 
 import torch
 
+from ._evidence import EVIDENCE_SETTLED, EvidenceSweeps, initial_decay, set_evidence, with_decay
+
 if TYPE_CHECKING:
     from ._presets import TrainingPreset
     from ._problem import LeastSquaresProblem
@@ -32,6 +34,8 @@ class TrainingLog:
     stopped_by: str = ""
     interrupted: bool = False
     effective_parameters: list = dataclasses.field(default_factory=list)
+    #: output error's evidence sweeps (``evidence_sweeps``): how many models had them undone by the guard
+    sweeps_undone: int = 0
     #: long records (``_long_record``): the first stage's subset size and the refinement's LM iterations
     subset_samples: int = 0
     refine_iterations: int = 0
@@ -111,97 +115,18 @@ def _adam(problem, theta, steps, lr, stop_loss, log, progress, holder, check_eve
     return theta.detach()
 
 
-def _evidence_update(problem, theta, JtJ, data_cost):
-    """MacKay's evidence approximation (Foresee & Hagan's Bayesian regularisation for LM).
-
-    With E_D the raw sum of squared data residuals over N samples and E_W the squared norm of the
-    network weights, the most probable hyperparameters satisfy alpha = gamma / (2 E_W) and
-    beta = (N - gamma) / (2 E_D), where gamma = P_w - 2 alpha tr_w(H^-1) is the effective number
-    of weights and H = 2 beta J_D^T J_D + 2 alpha I_w the Gauss-Newton Hessian. In the loss
-    ||r||^2 + lambda ||w||^2 (r scaled by 1/sqrt(N)) this is lambda = alpha / (beta N).
-    ``JtJ`` (decay rows included) and ``data_cost`` (the data rows' sum of squares) are those LM
-    already has at ``theta``.
-    """
-    K, P, _ = JtJ.shape
-    n_used = problem.n_used
-    idx = problem.decay_index
-    G = problem.n_decay_groups
-    lam = problem.decay_per_group(K).to(theta.dtype)  # (K, G)
-    masks = torch.zeros(G, P, dtype=theta.dtype, device=theta.device)
-    masks[problem.decay_group, idx] = 1.0
-    m_g = masks.sum(1)  # (G,) weights per group
-    lam_param = lam @ masks  # (K, P)
-    # data part of J^T J (in raw units): remove the decay rows' lambda * I_w, undo the 1/sqrt(N) scaling
-    JtJ_data = (JtJ - torch.diag_embed(lam_param)) * n_used.view(K, 1, 1)
-    E_D = data_cost * n_used
-    E_W = (theta.pow(2) @ masks.T).clamp_min(1e-12)  # (K, G)
-    gamma_prev = problem.gamma if problem.gamma is not None else m_g.expand(K, G)
-    beta = ((n_used - gamma_prev.sum(1)) / (2 * E_D)).clamp_min(1e-12)
-    alpha = lam * (beta * n_used).view(K, 1)  # (K, G)
-    H = 2 * beta.view(K, 1, 1) * JtJ_data + torch.diag_embed(2 * (alpha @ masks) + 1e-10)
-    L, info = torch.linalg.cholesky_ex(H)
-    ok = info == 0  # a model whose Hessian is not positive definite keeps its decay this step
-    L = torch.where(ok.view(K, 1, 1), L, torch.eye(P, dtype=L.dtype, device=L.device).expand(K, P, P))
-    Hinv_diag = torch.diagonal(torch.cholesky_inverse(L), dim1=1, dim2=2)
-    tr_w = Hinv_diag @ masks.T  # (K, G)
-    gamma = torch.minimum((m_g - 2 * alpha * tr_w).clamp_min(1.0), m_g)
-    gamma = torch.where(ok.view(K, 1), gamma, gamma_prev)
-    problem.gamma = gamma
-    alpha_new = gamma / (2 * E_W)
-    beta_new = ((n_used - gamma.sum(1)) / (2 * E_D)).clamp_min(1e-12)
-    lam_new = torch.where(ok.view(K, 1), alpha_new / (beta_new * n_used).view(K, 1), lam)
-    if problem.weight_decay.dim() < 2 and G == 1:
-        lam_new = lam_new[:, 0]  # keep the caller's (K,) layout
-    return lam_new, gamma.sum(1)
-
-
-def _initial_decay(problem, theta, shape):
-    """The evidence iterations start from a decay of 1e-8 or, in problems that ask for it (output
-    error), less where the weights are large against the data misfit (coefficients of physical size,
-    e.g. 6e5 V^-2 on the Silverbox): there a fixed start would make the prior outweigh the data on
-    the first step and drag the fit away."""
-    lam = torch.full(shape, 1e-8, dtype=theta.dtype, device=theta.device)
-    if problem.decay_index is None or not problem.scaled_initial_decay:
-        return lam
-    problem.set_weight_decay(torch.zeros(shape, dtype=theta.dtype, device=theta.device))
-    with torch.no_grad():
-        data = problem.data_loss(theta)  # (K,)
-    G = problem.n_decay_groups
-    masks = torch.zeros(G, theta.shape[1], dtype=theta.dtype, device=theta.device)
-    masks[problem.decay_group, problem.decay_index] = 1.0
-    E_W = (theta.pow(2) @ masks.T).clamp_min(1e-300)  # (K, G)
-    cap = 1e-6 * data.view(-1, 1) / E_W
-    cap = torch.where(torch.isfinite(cap), cap, torch.full_like(cap, 1e-8))
-    lam_g = torch.minimum(torch.full_like(cap, 1e-8), cap)
-    return lam_g.min(dim=1).values if len(shape) == 1 else lam_g
-
-
-def _with_decay(problem, theta, normal):
-    """The normal equations with the weight decay's rows added: ``(JtJ, Jtr, cost)``."""
-    JtJ, g, cost, _ = normal
-    if problem.decay_index is None:
-        return JtJ, g, cost
-    idx = problem.decay_index
-    w2, cost_d = problem.decay_terms(theta)
-    JtJ = JtJ.clone()
-    JtJ[:, idx, idx] += w2
-    g = g.clone()
-    g[:, idx] += w2 * theta[:, idx]
-    return JtJ, g, cost + cost_d
-
-
 def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress, holder, window=0,
-                         deadline=None, nielsen=False, keep_decay=False):
+                         deadline=None, nielsen=False, keep_decay=False, evidence_sweeps=0):
     """Batched LM on the normal equations (JtJ and Jtr accumulated by the problem, over chunks of
     samples on long records). ``keep_decay`` continues from the problem's current weight decay
     (the refinement of a long record, see ``_long_record``) instead of the evidence's start; for
-    ``window``, ``deadline`` and ``nielsen`` see :func:`train`."""
+    ``window``, ``deadline``, ``nielsen`` and ``evidence_sweeps`` see :func:`train`."""
     K, P = theta.shape
     if problem.bayesian and not keep_decay:
         shape = (K,) if problem.n_decay_groups == 1 else (K, problem.n_decay_groups)
-        problem.set_weight_decay(_initial_decay(problem, theta, shape))
+        problem.set_weight_decay(initial_decay(problem, theta, shape))
     normal = problem.normal_equations(theta)
-    JtJ, g, cost = _with_decay(problem, theta, normal)
+    JtJ, g, cost = with_decay(problem, theta, normal)
     mu = torch.full((K,), 1e-3, dtype=theta.dtype, device=theta.device)
     active = cost > stop_loss
     stalls = torch.zeros(K, dtype=torch.long, device=theta.device)
@@ -211,6 +136,7 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
     recent = torch.full((K, max(window, 1)), float("inf"), dtype=theta.dtype, device=theta.device)
     eye = torch.eye(P, dtype=theta.dtype, device=theta.device)
     nu = torch.full((K,), 2.0, dtype=theta.dtype, device=theta.device)
+    sweeps = EvidenceSweeps(theta, evidence_sweeps) if evidence_sweeps and problem.bayesian else None
     for it in range(max_iter):
         if not bool(active.any()):
             break
@@ -245,7 +171,7 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
         if bool(accept.any()):
             # the Jacobian only changes where a step was taken: recompute it once, at the new point
             normal = problem.normal_equations(theta)
-            JtJ, g, cost = _with_decay(problem, theta, normal)
+            JtJ, g, cost = with_decay(problem, theta, normal)
         holder["theta"] = theta
         if nielsen:
             # Nielsen's update from the gain ratio rho (actual / predicted decrease of the linear
@@ -261,12 +187,16 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
         if problem.bayesian and bool(accept.any()):
             # re-estimate the decay of the models that moved; the objective changes with it, so
             # the decay's share of the normal equations is refreshed under the new value
-            lam_new, gamma = _evidence_update(problem, theta, JtJ, normal[3])
-            lam_old = torch.as_tensor(problem.weight_decay, device=theta.device).expand_as(lam_new)
-            moved = (accept & active).view(K, *([1] * (lam_new.dim() - 1)))
-            problem.set_weight_decay(torch.where(moved, lam_new, lam_old))
-            JtJ, g, cost = _with_decay(problem, theta, normal)
-            log.effective_parameters = gamma.tolist()
+            moved = accept & active
+            if sweeps is None:
+                set_evidence(problem, theta, JtJ, normal[3], moved)
+                JtJ, g, cost = with_decay(problem, theta, normal)
+            else:  # output error: undo sweeps that misled, then one update and the sweeps of settled models
+                theta, normal = sweeps.guard(problem, theta, normal, moved)
+                holder["theta"] = theta
+                set_evidence(problem, theta, JtJ, normal[3], moved)
+                JtJ, g, cost = sweeps.settle(problem, theta, normal, moved & (rel < EVIDENCE_SETTLED))
+            log.effective_parameters = problem.gamma.sum(1).tolist()
         # with a window (output error), a refused step that the linear model says cannot gain more than
         # tol (MINPACK's ftol test) ends the model at once: theta stays as it is, and the further
         # refusals under a growing damping that used to fill the window cost one free run each
@@ -279,6 +209,8 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
             if progress is not None:
                 progress("lm", it, max_iter, float(cost.mean()))
     log.stopped_by = log.stopped_by or ("stall" if not bool(active.any()) else "max_iter")
+    if sweeps is not None:
+        log.sweeps_undone = int(sweeps.off.sum())
     return theta
 
 
@@ -296,6 +228,7 @@ def train(
     lm_deadline: float | None = None,
     lm_nielsen: bool = False,
     keep_decay: bool = False,
+    evidence_sweeps: int = 0,
 ) -> tuple[torch.Tensor, TrainingLog]:
     """Train ``theta0`` (``(K, P)``) on ``problem``; Ctrl-C keeps the best weights so far.
 
@@ -309,6 +242,9 @@ def train(
     gain-ratio rule instead of the fixed factors 1/3 and 4. ``lm_deadline`` (a ``time.monotonic()``
     value) ends training at the first iteration after that time. ``keep_decay``: LM continues from
     the problem's weight decay (the refinement of a long record) instead of the evidence's start.
+    ``evidence_sweeps`` > 0 (Bayesian problems): once a model's accepted step lowers its loss by less
+    than ``EVIDENCE_SETTLED`` (relative), its evidence is iterated up to that many times on the
+    linearised problem after each step instead of once (:class:`._evidence.EvidenceSweeps`).
     """
     log = TrainingLog()
     holder = {"theta": theta0}
@@ -319,7 +255,7 @@ def train(
             with torch.no_grad():
                 _levenberg_marquardt(
                     problem, holder["theta"], lm_max_iter, lm_tol, stop_loss, log, progress, holder, lm_window,
-                    lm_deadline, lm_nielsen, keep_decay)
+                    lm_deadline, lm_nielsen, keep_decay, evidence_sweeps)
     except KeyboardInterrupt:
         log.interrupted = True
         log.stopped_by = "interrupted"
