@@ -228,6 +228,56 @@ def test_stacked_duffing_draws_give_the_cases_of_single_draws():
     np.testing.assert_array_equal(scripts.simulate(t_eval=c.t_eval, x0=c.x0, v0=c.v0, A=c.A, Omega=c.Omega).x, c.x_true)
 
 
+def test_draws_that_leave_the_box_stop_early_with_the_answers_of_whole_runs(monkeypatch):
+    """The scripts' Duffing draws its validation cases one run at a time (loose tolerances); about 99 % of
+    the draws leave the training box, most within the first 13 s of the 80. A run given the box stops at
+    the first solver step with a sample outside: every draw gets the answer (inside or not) of its whole
+    run, the cases inside are that run to the last bit, and the runs that leave take fewer solver steps."""
+    import scipy.integrate
+
+    from charcurves.experiments._validation import VALIDATION_RANGES, _inside
+
+    scripts = get_system("duffing", "scripts")
+    box = training_box(corrupt(scripts.simulate(), 35.0, on="force", seed=0))
+    rng = np.random.default_rng(1)
+    ranges = VALIDATION_RANGES["duffing"]
+    draws = [{k: round(float(rng.uniform(*ranges[k])), 3) for k in ("x0", "v0", "A", "Omega")} for _ in range(48)]
+    t = np.linspace(0.0, 80.0, 2000)
+    steps = {"n": 0}
+    real_step = scipy.integrate.LSODA.step
+
+    def counting(self):
+        steps["n"] += 1
+        return real_step(self)
+
+    monkeypatch.setattr(scipy.integrate.LSODA, "step", counting)
+    whole = list(scripts.simulate_many(t, draws))
+    n_whole, steps["n"] = steps["n"], 0
+    early = list(scripts.simulate_many(t, draws, box))
+    inside = [run is not None and _inside(run[0], run[1], box) for run in whole]
+    assert 0 < sum(inside) < len(draws) // 2  # both answers occur among these draws
+    assert [run is not None for run in early] == inside
+    for a, b in zip(whole, early):
+        if b is not None:
+            np.testing.assert_array_equal(a[0], b[0])
+            np.testing.assert_array_equal(a[1], b[1])
+    assert steps["n"] < 0.6 * n_whole, (steps["n"], n_whole)
+    # the validation cases drawn with the box are those of whole runs
+    cases = make_validation_cases(scripts, 2, seed=3, box=box)
+    import charcurves.systems._base as base
+
+    def whole_run(fun, t_eval, y0, rtol, atol, box):  # the run to its end, then the box
+        sol = scipy.integrate.solve_ivp(fun, (t_eval[0], t_eval[-1]), y0, "LSODA", t_eval, rtol=rtol, atol=atol)
+        return (sol.y[0], sol.y[1]) if sol.success and _inside(sol.y[0], sol.y[1], box) else None
+
+    with monkeypatch.context() as m:
+        m.setattr(base, "_lsoda_samples_inside", whole_run)
+        slow = make_validation_cases(scripts, 2, seed=3, box=box)
+    assert cases.n_attempts == slow.n_attempts > 2 and len(cases) == len(slow) == 2
+    for c, d in zip(cases, slow):
+        np.testing.assert_array_equal(c.x_true, d.x_true)
+
+
 # ---------------------------------------------------------------------------- LSODA from sample to sample
 def test_lsoda_sample_to_sample_gives_the_trajectory_and_failures_of_stepping(monkeypatch):
     """A run without events goes by LSODA over its samples (odeint, or scipy.integrate.ode from sample to

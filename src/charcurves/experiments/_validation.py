@@ -214,10 +214,11 @@ def make_validation_cases(system, n_cases: int = 10, *, seed: int = 0, box: Mapp
     chunk = 16
     while len(cases) < int(n_cases) and attempts < int(max_attempts):
         # draws are simulated a chunk at a time (a system may integrate them stacked: Duffing), and taken
-        # in draw order: the attempts are those of drawing one at a time
+        # in draw order: the attempts are those of drawing one at a time; a run may stop as soon as it
+        # leaves the box (None: rejected, as it would be at the end)
         draws = [{k: round(float(rng.uniform(*ranges[k])), decimals) for k in _DRAW_ORDER}
                  for _ in range(min(chunk, int(max_attempts) - attempts))]
-        for draw, run in zip(draws, system.simulate_many(t_eval, draws)):
+        for draw, run in zip(draws, system.simulate_many(t_eval, draws, box)):
             attempts += 1
             if run is not None and _inside(run[0], run[1], box):
                 cases.append(ValidationCase(draw["x0"], draw["v0"], draw["A"], draw["Omega"], t_end, n_points,
