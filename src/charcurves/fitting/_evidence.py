@@ -146,10 +146,13 @@ class EvidenceSweeps:
         self.saved: tuple | None = None
 
     def guard(self, problem, theta, normal, moved):
-        """Undo the sweeps of the models whose accepted step raised the data loss too much."""
+        """Undo the sweeps of the models whose accepted step raised the data loss too much:
+        ``(theta, normal equations, undone rows)``. An undone model is back at the point, decays and
+        effective parameters of its sweeps (the step's own evidence update included), which costs one
+        free run of the batch (the normal equations at the restored point)."""
         bad = moved & torch.isfinite(self.ref) & (normal[3] > self.ref * (1 + EVIDENCE_GUARD))
         if not bool(bad.any()) or self.saved is None:
-            return theta, normal
+            return theta, normal, bad
         theta0, lam0, gamma0 = self.saved
         K = theta.shape[0]
         theta = torch.where(bad.view(K, 1), theta0, theta)
@@ -159,7 +162,7 @@ class EvidenceSweeps:
             problem.gamma = torch.where(bad.view(K, 1), gamma0, problem.gamma)
         self.off |= bad
         self.ref = torch.where(bad, torch.full_like(self.ref, float("nan")), self.ref)
-        return theta, problem.normal_equations(theta)
+        return theta, problem.normal_equations(theta), bad
 
     def settle(self, problem, theta, normal, rows):
         """Sweep the models in ``rows`` (not those whose sweeps were undone); the normal equations
@@ -170,17 +173,10 @@ class EvidenceSweeps:
             K = theta.shape[0]
             lam = torch.as_tensor(problem.weight_decay, device=theta.device).clone()
             gamma = problem.gamma.clone() if problem.gamma is not None else None
-            if self.saved is None:
-                self.saved = (theta.clone(), lam, gamma)
-            else:
-                t0, l0, g0 = self.saved
-                sel = rows.view(K, 1)
-                self.saved = (torch.where(sel, theta, t0), torch.where(rows.view(K, *([1] * (lam.dim() - 1))), lam, l0),
-                              torch.where(sel, gamma, g0) if gamma is not None and g0 is not None else gamma)
-            self.ref = torch.where(rows, normal[3], self.ref)
             JtJ, g, _ = with_decay(problem, theta, normal)
             P = theta.shape[1]
             eye = torch.eye(P, dtype=theta.dtype, device=theta.device)
+            swept = torch.zeros_like(rows)  # the models whose decays the sweeps moved
             for _ in range(self.n):
                 if not bool(rows.any()):
                     break
@@ -189,5 +185,15 @@ class EvidenceSweeps:
                 rows = rows & (info == 0)
                 change = set_evidence(problem, star, JtJ, normal[3], rows, relevance)
                 JtJ, g, _ = with_decay(problem, theta, normal)
+                swept = swept | (rows & (change > 0))
                 rows = rows & (change > 1e-2)
+            # what the guard restores: the point, decays and effective parameters before these sweeps
+            sel, lsel = swept.view(K, 1), swept.view(K, *([1] * (lam.dim() - 1)))
+            if self.saved is None:
+                self.saved = (theta.clone(), lam, gamma)
+            else:
+                t0, l0, g0 = self.saved
+                self.saved = (torch.where(sel, theta, t0), torch.where(lsel, lam, l0),
+                              torch.where(sel, gamma, g0) if gamma is not None and g0 is not None else gamma)
+            self.ref = torch.where(swept, normal[3], self.ref)
         return with_decay(problem, theta, normal)

@@ -192,9 +192,11 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
                 set_evidence(problem, theta, JtJ, normal[3], moved)
                 JtJ, g, cost = with_decay(problem, theta, normal)
             else:  # output error: undo sweeps that misled, then one update and the sweeps of settled models
-                theta, normal = sweeps.guard(problem, theta, normal, moved)
+                theta, normal, undone = sweeps.guard(problem, theta, normal, moved)
                 holder["theta"] = theta
-                set_evidence(problem, theta, JtJ, normal[3], moved)
+                if bool(undone.any()):
+                    JtJ, g, cost = with_decay(problem, theta, normal)
+                set_evidence(problem, theta, JtJ, normal[3], moved & ~undone)
                 JtJ, g, cost = sweeps.settle(problem, theta, normal, moved & (rel < EVIDENCE_SETTLED))
             log.effective_parameters = problem.gamma.sum(1).tolist()
         # with a window (output error), a refused step that the linear model says cannot gain more than
