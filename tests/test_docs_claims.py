@@ -177,6 +177,7 @@ def test_table_2_on_the_scripts_system_is_what_the_docs_say():
     df = pd.read_csv(SCRIPTS_DUFFING)
     counts = df.groupby("method").size()
     assert len(counts) == 13 and set(counts) == {610} and (df["status"] == "ok").all()
+    assert df["n_cases"].between(4, 10).all() and (df["n_cases"] == 10).mean() > 0.85 and df["t_sep"].notna().all()
     assert set(df["variant"]) == {"scripts"} and set(df["system"]) == {"duffing"}
     text = _page("benchmark.md")
     section = _section(text, "### Duffing on the scripts' system", "### Stick-slip on the scripts' system")
