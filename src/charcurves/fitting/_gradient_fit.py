@@ -99,7 +99,8 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
     preset : TrainingPreset
     seeds : sequence of int
         One per record; each record's starts come from its own seed, so records trained together
-        equal records trained one by one.
+        equal records trained one by one, to rounding (a batch of one record can differ in the
+        last bits; see :mod:`._problem`).
     masks : sequence of bool arrays
         The samples each record fits (sticking phases of dry friction left out).
     jumps : sequence of str

@@ -10,7 +10,11 @@ adds residuals sqrt(lambda / N_sym) * (f_i(z) -+ f_i(-z)). The loss is the sum o
 ``w = 1/sqrt(N)`` gives the paper's mean-squared error.
 
 Models never interact: Adam is elementwise and LM solves one small system per model, so K
-models trained together equal K models trained one by one.
+models trained together equal K models trained one by one, to rounding. Not always to the bit:
+torch's batched matrix product takes another path for a batch of one where a factor has a
+dimension of one (a network's first and last layers), and float32 training over many epochs
+grows that last-bit difference (docs/benchmark.md, "The paper's protocol on this CPU"); batches
+of two or more give the same bits for each model whatever its companions.
 
 A curve is any parametrisation with the protocol of :class:`charcurves.curves.LinearParametrisation`
 (a neural network, a polynomial, a user-written representation...). Weight decay (Bayesian
