@@ -163,7 +163,7 @@ def test_the_paper_preset_on_the_cpu_is_what_the_docs_say():
         assert f"{a_paper[0]:.4f} / {a_paper[1]:.4f}" in text, method
         assert f"{a_default[0]:.4f} / {a_default[1]:.4f}" in text, method
     # refitted in a batch with another partner, the 40 dB realisation-0 fits are the first invocation's
-    row = paper.set_index(["method", "snr_db", "realization"]).loc[("nn-cc", 40.0, 0)]
+    row = paper.set_index(key).loc[("nn-cc", 40.0, 0)]
     assert f"against {row['rmse_f1']:.6f} / {row['rmse_f2']:.6f} and {row['rmse_x']:.3f}" in text
 
 

@@ -11,24 +11,20 @@ import torch
 
 from charcurves.curves import Basis, LinearParametrisation
 from charcurves.fitting._evidence import EVIDENCE_GUARD, EvidenceSweeps, evidence_update, initial_decay
-from charcurves.fitting._problem import RELEVANCE_LABEL, BatchedProblem, CurveTerm
+from charcurves.fitting._output_error import _Ridge
+from charcurves.fitting._problem import BatchedProblem, CurveTerm
 
 BASIS = "z, z**2, z**3, z**4, z**5, z**6, z**7"
 TRUE = np.array([1.0, 0.0, -0.5, 0.0, 0.0, 0.0, 0.0])  # f(z) = z - z^3 / 2: five spare terms
 
 
-class _Relevance(LinearParametrisation):
-    """Each coefficient its own decay group (as output error's polynomial curves); with ``network``
-    the last two coefficients form a group labelled as a network layer instead."""
-
-    def __init__(self, curve, network: bool = False):
-        super().__init__(curve)
-        self.network = network
+class _WithLayer(_Ridge):
+    """Output error's relevance groups (one per coefficient), but the last two coefficients form one
+    group labelled as a network layer."""
 
     def decay_groups(self) -> list:
-        n = self.n_params - (2 if self.network else 0)
-        groups = [(slice(k, k + 1), f"{RELEVANCE_LABEL}{k + 1}") for k in range(n)]
-        return groups + ([(slice(n, self.n_params), "layer 1")] if self.network else [])
+        n = int(self.n_params) - 2
+        return super().decay_groups()[:n] + [(slice(n, n + 2), "layer 1")]
 
 
 def _problem(network=False, K=2, N=400, noise=0.01, seed=0):
@@ -39,7 +35,7 @@ def _problem(network=False, K=2, N=400, noise=0.01, seed=0):
     F = gen.normal(size=(K, N))
     y = F - f + noise * gen.normal(size=(K, N))  # y + f(u) - F = noise
     t = lambda a: torch.as_tensor(a, dtype=torch.float64)  # noqa: E731
-    param = _Relevance(Basis(BASIS), network)
+    param = (_WithLayer if network else _Ridge)(LinearParametrisation(Basis(BASIS)))
     prob = BatchedProblem([CurveTerm(param, t(u))], t(y), t(F), torch.full((K, N), N ** -0.5, dtype=torch.float64),
                           bayesian=True, decay_groups="per-layer")
     prob.scaled_initial_decay = True
