@@ -148,21 +148,41 @@ class _Quantised:
         return c
 
 
-def test_output_error_training_stops_at_the_first_step_refused_by_rounding():
-    """With a stop window (output error), a step the linear model says cannot gain more than the
-    tolerance, refused because its loss changed by rounding only, ends the member at once: one such
-    trial, where filling the window took three more free runs (each trial is one free run in output
-    error); the parameters are those of the last accepted step."""
+def _train_quantised(theta0, window):
     from charcurves.fitting._train import train
 
     q = _Quantised()
-    theta, log = train(q.problem, torch.zeros(1, 4, dtype=torch.float64), adam_steps=0, adam_lr=0.0, lm_max_iter=50,
-                       lm_tol=1e-6, stop_loss=0.0, lm_window=4)
-    assert log.stopped_by == "stall" and log.lm_iterations == 3 and len(q.costs) == 3, q.costs
-    assert q.costs[2] > q.costs[1]  # the last trial was refused...
-    assert float(q.problem.loss(theta)[0]) == q.costs[1]  # ...and the accepted point is kept
+    theta, log = train(q.problem, theta0, adam_steps=0, adam_lr=0.0, lm_max_iter=50, lm_tol=1e-6, stop_loss=0.0,
+                       lm_window=window)
+    return q, theta, log
+
+
+def test_output_error_training_stops_at_the_first_step_that_gains_nothing():
+    """With a stop window (output error), an accepted step that lowered the loss by less than the
+    tolerance, where the linear model predicted no more (MINPACK's ftol test), ends the member at
+    once: two trials from zero (each one free run in output error), where the window took two more;
+    the parameters are the last step's. Without a window (equation error) the rule of three stalls
+    is unchanged."""
+    q, theta, log = _train_quantised(torch.zeros(1, 4, dtype=torch.float64), 4)
+    assert log.stopped_by == "stall" and log.lm_iterations == 2 and len(q.costs) == 2, q.costs
+    assert 0 < q.costs[0] - q.costs[1] < 1e-6 * q.costs[0]  # the second step gained by rounding only
+    assert float(q.problem.loss(theta)[0]) == q.costs[1]
     exact = torch.linalg.lstsq(q.A, q.b).solution
     assert float((theta[0] - exact).abs().max()) < 1e-5
+    q, _, log = _train_quantised(torch.zeros(1, 4, dtype=torch.float64), 0)
+    assert log.lm_iterations == 4 and len(q.costs) == 4, q.costs
+
+
+def test_output_error_training_stops_at_the_first_step_refused_by_rounding():
+    """Started next to the optimum, the first step is refused because its loss changed by rounding
+    only, and the linear model says it cannot gain more than the tolerance: the member ends at once
+    (one trial, where filling the window took three more free runs) and keeps its parameters."""
+    exact = torch.linalg.lstsq(_Quantised().A, _Quantised().b).solution
+    start = (exact + 1e-7).view(1, -1)
+    q, theta, log = _train_quantised(start.clone(), 4)
+    assert log.stopped_by == "stall" and log.lm_iterations == 1 and len(q.costs) == 1, q.costs
+    assert q.costs[0] > float(q.problem.loss(start)[0])  # refused...
+    assert torch.equal(theta, start)  # ...and the start is kept
 
 
 @pytest.mark.parametrize("basis", [["1", "z", "z**2", "z**3", "z**10"], ["z", "z**3", "z**5"], ["1"], ["z**2", "1"]])

@@ -7,7 +7,7 @@ from __future__ import annotations
 import torch
 
 __all__ = ["evidence_update", "initial_decay", "with_decay", "set_evidence", "EvidenceSweeps", "EVIDENCE_SETTLED",
-           "EVIDENCE_GUARD"]
+           "EVIDENCE_GUARD", "SWEEP_TOL"]
 
 
 def evidence_update(problem, theta, JtJ, data_cost):
@@ -115,6 +115,11 @@ def set_evidence(problem, theta, JtJ, data_cost, rows, groups=None) -> torch.Ten
     return change.reshape(K, -1).max(dim=1).values
 
 
+#: The sweeps stop once no decay's logarithm moves by more than this: the decays are known to about
+#: 1 %, and a Levenberg-Marquardt step that moves none by more counts as leaving them at their fixed point.
+SWEEP_TOL = 1e-2
+
+
 #: A step after evidence sweeps that raises a model's data loss by more than this (relative) undoes
 #: them: the model returns to where they were made and keeps one evidence update per step.
 EVIDENCE_GUARD = 0.25
@@ -130,7 +135,7 @@ class EvidenceSweeps:
     coefficients (a polynomial's, a library's or a closed form's; the problem's ``relevance_groups``)
     are iterated to their fixed point on the problem linearised at the step (each sweep solves the
     Gauss-Newton normal equations under the current decays, reusing them: no new free run, and
-    re-estimates those decays at that solution; until none moves by 1 % or ``n`` sweeps). Network
+    re-estimates those decays at that solution; until none moves by ``SWEEP_TOL`` (1 %) or ``n`` sweeps). Network
     weight groups keep one update per step: swept, they settled at decays that held two-DOF and van
     der Pol fits far from the record. A fixed point of the linearised problem can be far from the
     nonlinear one (correlated terms, such as radial basis functions, all pruned at once): when the
@@ -186,7 +191,7 @@ class EvidenceSweeps:
                 change = set_evidence(problem, star, JtJ, normal[3], rows, relevance)
                 JtJ, g, _ = with_decay(problem, theta, normal)
                 swept = swept | (rows & (change > 0))
-                rows = rows & (change > 1e-2)
+                rows = rows & (change > SWEEP_TOL)
             # what the guard restores: the point, decays and effective parameters before these sweeps
             sel, lsel = swept.view(K, 1), swept.view(K, *([1] * (lam.dim() - 1)))
             if self.saved is None:

@@ -94,8 +94,9 @@ class OutputError(_Objective):
         get Nielsen's damping rule (docs/measured-records.md).
     tol : float
         A member stops when the relative decrease of its loss summed over its last 4 iterations is
-        below this, or at once when a step is refused because its loss changed by less than this
-        (relative) and the linear model predicts no larger decrease.
+        below this, or at once at a step whose loss changed by less than this (relative) where the
+        linear model predicts no larger decrease (MINPACK's ftol test): a refused step, or an
+        accepted one after which no relevance decay moved by more than 1 %.
     max_segments : int
         Longer records use this many segments spread over the record (the rest is not simulated).
         256 segments of 64 samples are 16 320 samples: on the Silverbox's 65 062-sample split every

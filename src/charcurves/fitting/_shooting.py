@@ -255,18 +255,24 @@ class ShootingProblem(ShootingODE, LeastSquaresProblem):
         J = theta.new_zeros(B, n_rows, self.n_params)
         Jd = J[:, :self.n_data].view(B, S, L, O, self.n_params)
         Jd[..., :P] = SXt * w.view(1, 1, 1, O, 1)
-        seg = torch.arange(S)
-        for d in range(D):  # each segment's own initial state
-            Jd[:, seg, :, :, P + seg * D + d] = (SXy[..., d] * w.view(1, 1, 1, O)).permute(1, 0, 2, 3)
+        # each segment's own initial state: the diagonal of (segment of the row, segment of the column)
+        own = Jd[..., P:].view(B, S, L, O, S, D).diagonal(dim1=1, dim2=4)  # (B, L, O, D, S), a view
+        own.copy_((SXy * w.view(1, 1, 1, O, 1)).permute(0, 2, 3, 4, 1))
         row = self.n_data
         if self.n_cont:
+            # per contiguous pair (s, s + 1) and state entry d: d(end of s - start of s + 1) / scale[d]
             c = self.continuity * self._out_w
-            for s in torch.nonzero(self.contiguous).flatten().tolist():
-                for d in range(D):
-                    J[:, row, :P] = St_end[:, s, d, :] * (c / scale[d])
-                    J[:, row, P + s * D:P + (s + 1) * D] = Sy_end[:, s, d, :] * (c / scale[d])
-                    J[:, row, P + (s + 1) * D + d] -= c / scale[d]
-                    row += 1
+            pairs = torch.nonzero(self.contiguous).flatten()
+            n_pairs = pairs.numel()
+            cs = (c / scale).view(1, 1, D, 1)
+            Jc = J[:, row:row + n_pairs * D]
+            Jc[..., :P] = (St_end[:, pairs] * cs).reshape(B, n_pairs * D, P)
+            Ji = Jc[..., P:].view(B, n_pairs, D, S, D)
+            at = torch.arange(n_pairs)
+            Ji[:, at, :, pairs, :] = (Sy_end[:, pairs] * cs).transpose(0, 1)  # (pairs, B, D, D)
+            dd = torch.arange(D)
+            Ji[:, at.view(-1, 1), dd.view(1, -1), (pairs + 1).view(-1, 1), dd.view(1, -1)] = -(c / scale)
+            row += n_pairs * D
         if self.decay_index is not None:
             m = self.decay_index.numel()
             J[:, row + torch.arange(m), self.decay_index] = (

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import torch
 
-from ._evidence import EVIDENCE_SETTLED, EvidenceSweeps, initial_decay, set_evidence, with_decay
+from ._evidence import EVIDENCE_SETTLED, SWEEP_TOL, EvidenceSweeps, initial_decay, set_evidence, with_decay
 
 if TYPE_CHECKING:
     from ._presets import TrainingPreset
@@ -158,11 +158,12 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
         rel = torch.where(accept, (cost - cost_new) / cost.clamp_min(1e-300), torch.zeros_like(cost))
         # the decrease the linear model predicts: -(2 g.s + s'JtJ s) = -g.s + mu s'Ds for the LM step
         predicted = -(g * step).sum(1) + mu * (scale * step * step).sum(1)
-        # converged where the step is refused by rounding alone: the model predicts no decrease
-        # above the tolerance and none happened (MINPACK's ftol test); otherwise the damping would
-        # grow to its cap over some 30 refused steps that all leave theta as it is
+        # converged (MINPACK's ftol test) where neither the trial nor the linear model gains more
+        # than tol: a refused step (otherwise the damping would grow to its cap over some 30 refused
+        # steps that all leave theta as it is) or, with a window (output error), an accepted one
+        # whose evidence update left the decays in place (checked below)
         rounding = (cost_new - cost).abs() <= tol * cost
-        settled = ~accept & ok_solve & (predicted <= tol * cost) & rounding
+        settled = ok_solve & (predicted <= tol * cost) & rounding & (active if window else ~accept)
         if window:
             flat = accept | (active & ok_solve & rounding)
             recent = torch.where(flat.unsqueeze(-1), torch.cat([recent[:, 1:], rel.unsqueeze(-1)], dim=1), recent)
@@ -185,6 +186,7 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
             mu = torch.where(accept, (mu / 3).clamp_min(1e-12), (mu * 4).clamp_max(1e12))
         stalls = torch.where((accept & (rel < tol)) | settled, stalls + 1, torch.where(accept, 0, stalls))
         if problem.bayesian and bool(accept.any()):
+            lam_before = torch.as_tensor(problem.weight_decay, dtype=theta.dtype, device=theta.device).clone()
             # re-estimate the decay of the models that moved; the objective changes with it, so
             # the decay's share of the normal equations is refreshed under the new value
             moved = accept & active
@@ -199,9 +201,10 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
                 set_evidence(problem, theta, JtJ, normal[3], moved & ~undone)
                 JtJ, g, cost = sweeps.settle(problem, theta, normal, moved & (rel < EVIDENCE_SETTLED))
             log.effective_parameters = problem.gamma.sum(1).tolist()
-        # with a window (output error), a refused step that the linear model says cannot gain more than
-        # tol (MINPACK's ftol test) ends the model at once: theta stays as it is, and the further
-        # refusals under a growing damping that used to fill the window cost one free run each
+            if window:  # a decay that moved by more than the sweeps resolve opens new ground: go on
+                settled = settled & (~accept | ~_decays_moved(problem, lam_before, K))
+        # with a window (output error), a settled step ends the model at once: the further trials
+        # that used to fill the window cost one free run each and left theta where it was
         finished = ((recent.sum(dim=1) < tol) | settled) if window else (stalls >= 3)
         finished = finished | (mu >= 1e12) | (cost < stop_loss)
         active = active & ~finished
@@ -214,6 +217,14 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
     if sweeps is not None:
         log.sweeps_undone = int(sweeps.off.sum())
     return theta
+
+
+def _decays_moved(problem, lam_before, K) -> torch.Tensor:
+    """``(K,)`` bool: a decay of the model changed by more than ``SWEEP_TOL`` in logarithm since ``lam_before``."""
+    lam = torch.as_tensor(problem.weight_decay, dtype=lam_before.dtype, device=lam_before.device)
+    lam_before = lam_before.expand_as(lam)
+    change = (lam.clamp_min(1e-300).log() - lam_before.clamp_min(1e-300).log()).abs()
+    return change.reshape(K, -1).max(dim=1).values > SWEEP_TOL
 
 
 def train(
@@ -239,8 +250,9 @@ def train(
     predicts less and the trial's loss differs by less). With ``lm_window`` > 0 (output error) it
     stops a model once its relative decrease summed over its last ``lm_window`` iterations is below
     ``lm_tol`` (rejected steps whose trial changed the loss by less than that count as no decrease:
-    at convergence the trials differ by rounding), or at once when a step is refused by rounding
-    alone (above: the linear model predicts less than ``lm_tol``). ``lm_nielsen`` sets the damping by Nielsen's
+    at convergence the trials differ by rounding), or at once at a step whose trial and linear
+    model both gain less than ``lm_tol`` (MINPACK's ftol test): a refused step, or an accepted one
+    after which no decay of a Bayesian problem moved by more than ``SWEEP_TOL`` (in log). ``lm_nielsen`` sets the damping by Nielsen's
     gain-ratio rule instead of the fixed factors 1/3 and 4. ``lm_deadline`` (a ``time.monotonic()``
     value) ends training at the first iteration after that time. ``keep_decay``: LM continues from
     the problem's weight decay (the refinement of a long record) instead of the evidence's start.
