@@ -70,10 +70,9 @@ class Spectral(Differentiator):
        that pure noise exceeds with probability 1 % anywhere in the band. That 1 % is the chance
        of one false alarm, which lands anywhere in the band: the highest exceedance is taken for
        noise when it lies more than an octave and more than 5 % of the band above every other
-       one and below twice the level,
-       which a genuine component far above the signal band would pass and noise passes with a
-       chance of about 4e-7. A first pass with a straight-line trend sets this
-       cutoff and the end-fit length.
+       one and below twice the level (a genuine component far above the signal band passes
+       that level; noise, with a chance of about 4e-7). A first pass with a straight-line trend
+       sets this cutoff and the end-fit length.
     3. Derivatives: ``x̂ = p + IFFT(R)``, ``x̂' = p' + IFFT(iω R)``, ``x̂'' = p'' + IFFT(-ω² R)``
        with ``R`` zeroed above the cutoff (scipy.fft).
 
