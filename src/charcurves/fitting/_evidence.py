@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import torch
 
-__all__ = ["evidence_update", "initial_decay", "with_decay", "set_evidence", "EvidenceSweeps", "EVIDENCE_SETTLED",
-           "EVIDENCE_GUARD", "SWEEP_TOL"]
+__all__ = ["evidence_update", "initial_decay", "with_decay", "set_evidence", "decay_moves", "EvidenceSweeps",
+           "EVIDENCE_SETTLED", "EVIDENCE_GUARD", "SWEEP_TOL"]
 
 
 def evidence_update(problem, theta, JtJ, data_cost):
@@ -111,7 +111,16 @@ def set_evidence(problem, theta, JtJ, data_cost, rows, groups=None) -> torch.Ten
             problem.gamma = torch.where(keep, problem.gamma, gamma_old)
     lam = torch.where(sel, lam_new, lam_old)
     problem.set_weight_decay(lam)
-    change = torch.where(sel, (lam.clamp_min(1e-300).log() - lam_old.clamp_min(1e-300).log()).abs(), 0.0)
+    return decay_moves(lam, lam_old, K, sel)
+
+
+def decay_moves(lam, lam_old, K: int, where=None) -> torch.Tensor:
+    """The largest change of a decay's logarithm per model, ``(K,)``, from ``lam_old`` to ``lam``
+    (only the entries in ``where`` when given)."""
+    lam_old = torch.as_tensor(lam_old, dtype=lam.dtype, device=lam.device).expand_as(lam)
+    change = (lam.clamp_min(1e-300).log() - lam_old.clamp_min(1e-300).log()).abs()
+    if where is not None:
+        change = torch.where(where, change, 0.0)
     return change.reshape(K, -1).max(dim=1).values
 
 

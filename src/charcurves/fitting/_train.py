@@ -16,7 +16,8 @@ from typing import TYPE_CHECKING
 
 import torch
 
-from ._evidence import EVIDENCE_SETTLED, SWEEP_TOL, EvidenceSweeps, initial_decay, set_evidence, with_decay
+from ._evidence import (EVIDENCE_SETTLED, SWEEP_TOL, EvidenceSweeps, decay_moves, initial_decay, set_evidence,
+                        with_decay)
 
 if TYPE_CHECKING:
     from ._presets import TrainingPreset
@@ -186,7 +187,7 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
             mu = torch.where(accept, (mu / 3).clamp_min(1e-12), (mu * 4).clamp_max(1e12))
         stalls = torch.where((accept & (rel < tol)) | settled, stalls + 1, torch.where(accept, 0, stalls))
         if problem.bayesian and bool(accept.any()):
-            lam_before = torch.as_tensor(problem.weight_decay, dtype=theta.dtype, device=theta.device).clone()
+            lam_before = problem.weight_decay if window else None  # set_weight_decay replaces, never mutates
             # re-estimate the decay of the models that moved; the objective changes with it, so
             # the decay's share of the normal equations is refreshed under the new value
             moved = accept & active
@@ -202,7 +203,8 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
                 JtJ, g, cost = sweeps.settle(problem, theta, normal, moved & (rel < EVIDENCE_SETTLED))
             log.effective_parameters = problem.gamma.sum(1).tolist()
             if window:  # a decay that moved by more than the sweeps resolve opens new ground: go on
-                settled = settled & (~accept | ~_decays_moved(problem, lam_before, K))
+                lam_now = torch.as_tensor(problem.weight_decay, dtype=theta.dtype, device=theta.device)
+                settled = settled & (~accept | ~(decay_moves(lam_now, lam_before, K) > SWEEP_TOL))
         # with a window (output error), a settled step ends the model at once: the further trials
         # that used to fill the window cost one free run each and left theta where it was
         finished = ((recent.sum(dim=1) < tol) | settled) if window else (stalls >= 3)
@@ -217,14 +219,6 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
     if sweeps is not None:
         log.sweeps_undone = int(sweeps.off.sum())
     return theta
-
-
-def _decays_moved(problem, lam_before, K) -> torch.Tensor:
-    """``(K,)`` bool: a decay of the model changed by more than ``SWEEP_TOL`` in logarithm since ``lam_before``."""
-    lam = torch.as_tensor(problem.weight_decay, dtype=lam_before.dtype, device=lam_before.device)
-    lam_before = lam_before.expand_as(lam)
-    change = (lam.clamp_min(1e-300).log() - lam_before.clamp_min(1e-300).log()).abs()
-    return change.reshape(K, -1).max(dim=1).values > SWEEP_TOL
 
 
 def train(
