@@ -4,9 +4,11 @@
 2. prepare each record: derivatives given or estimated by the differentiator, identifiability checks;
 3. the samples each record fits (sticking phases left out) and the learned jumps (dry friction);
 4. the fit by equation error through the one fitting path (:mod:`._fit_path`);
-5. post-SR (closed forms), when asked;
-6. output error, when the objective asks for it ("auto": on records whose derivatives were
-   estimated), on the final curves (the closed forms after post-SR);
+5. output error, when the objective asks for it ("auto": on records whose derivatives were
+   estimated), on the fitted curves;
+6. post-SR (closed forms), when asked: it distils the curves output error refined (not the
+   equation-error fit, whose curves carry the differentiated noise), and output error then refits
+   the closed forms' constants (records that went through step 5);
 7. the settings that shaped the answer, stored in each model's ``info["settings"]``;
 8. the self-check (:mod:`._self_check`): each equation's loss against the record's noise floor,
    in ``info["self_check"]``, with a warning in ``info["warnings"]`` when far above it.
@@ -95,9 +97,10 @@ def _fit_stage(est, records: list, seeds):
         [((), (), ()) for _ in prepared]
     use_oe = [mode == "output-error" or (mode == "auto" and e and preset.name != "paper") for e in estimated]
     fit_preset = preset
-    if all(use_oe) and not est.wants_post_sr() and preset.combine == "mean":
+    if all(use_oe) and preset.combine == "mean":
         # every start goes on to output error, which chooses the members afterwards (by AIC, where a
-        # start that fits the noise with more effective parameters loses): keep them all here
+        # start that fits the noise with more effective parameters loses): keep them all here (post-SR
+        # comes after output error, so a +post-sr fit keeps them too)
         fit_preset = preset.replace(combine_tol=float("inf"))
     models = fit_records(prepared, structure, reps, fit_preset, seeds, method=method, masks=masks, jumps=jumps,
                          options=options, sr_options=dict(est.sr_options or {}), device=est.device,
@@ -117,8 +120,8 @@ def fit_with_post_sr(plain, distilled, records, seeds=None) -> tuple[list, list]
     ``plain`` fits without post-SR (e.g. method "nn-cc"), ``distilled`` with it ("nn-cc+post-sr"):
     the networks (or libraries) they train are the same, so they are trained once and finished
     twice. Each list equals what ``est.fit_many(records, seeds)`` returns for that estimator.
-    Where the two fit stages would differ (records that all go on to output error, whose
-    equation-error stage keeps every start unless post-SR follows), both are fitted.
+    Output error, where it runs, comes before post-SR (:func:`run_pipeline`), so it is shared too:
+    the distilled models start from the plain ones.
 
     Examples
     --------
@@ -139,15 +142,13 @@ def fit_with_post_sr(plain, distilled, records, seeds=None) -> tuple[list, list]
     if any(isinstance(e.symmetry, str) and e.symmetry.strip().lower() == "auto" for e in (plain, distilled)):
         return plain.fit_many(records, seeds), distilled.fit_many(records, seeds)  # parities detected per fit
     ctx = _fit_stage(plain, records, seeds)
-    if all(ctx["use_oe"]) and ctx["preset"].combine == "mean":  # the two fit stages differ (see _fit_stage)
-        other = _fit_stage(distilled, records, ctx["seeds"])
-    else:
-        models = [copy.copy(m) for m in ctx["models"]]
-        for m in models:  # post-SR builds new models; the plain ones get their own info to finish
-            m.info = copy.deepcopy(m.info)
-        other = dict(ctx, models=ctx["models"], method=distilled.resolve()[3])
-        ctx = dict(ctx, models=models)
-    return _finish(plain, ctx, records), _finish(distilled, other, records)
+    refined = _refine(plain, ctx, records)
+    models, stop = refined
+    copies = [copy.copy(m) for m in models]
+    for m in copies:  # post-SR builds new models; the plain ones get their own info to finish
+        m.info = copy.deepcopy(m.info)
+    return (_finish(plain, ctx, records, refined),
+            _finish(distilled, dict(ctx, method=distilled.resolve()[3]), records, (copies, stop)))
 
 
 def _post_sr_pair(plain, distilled) -> str:
@@ -166,17 +167,25 @@ def _post_sr_pair(plain, distilled) -> str:
     return f"they differ in {', '.join(differ)}" if differ else ""
 
 
-def _finish(est, ctx: dict, records: list) -> list:
-    """Post-SR, output error, the settings and the self-check of the fit stage's models."""
-    models, prepared, estimated, seeds = ctx["models"], ctx["prepared"], ctx["estimated"], ctx["seeds"]
-    mode, oe_settings, preset, reps = ctx["mode"], ctx["oe_settings"], ctx["preset"], ctx["reps"]
+def _refine(est, ctx: dict, records: list, models=None, stop: bool | None = None) -> tuple[list, bool]:
+    """Output error of the models (the fit stage's by default) on the records that ask for it."""
+    models = ctx["models"] if models is None else models
+    if stop is None:
+        stop = any(m.info.get("interrupted") for m in models)
+    return _output_error(models, ctx["prepared"], records, ctx["use_oe"], ctx["oe_settings"], ctx["preset"],
+                         est.progress, stop, strict=ctx["mode"] == "output-error")
+
+
+def _finish(est, ctx: dict, records: list, refined: tuple[list, bool] | None = None) -> list:
+    """Output error (unless ``refined`` gives its result), post-SR and output error of the closed
+    forms, the settings and the self-check of the fit stage's models."""
+    prepared, estimated, seeds = ctx["prepared"], ctx["estimated"], ctx["seeds"]
+    mode, preset, reps, use_oe = ctx["mode"], ctx["preset"], ctx["reps"], ctx["use_oe"]
     structure, sym, method, diff, jumps = ctx["structure"], ctx["sym"], ctx["method"], ctx["diff"], ctx["jumps"]
-    stop = any(m.info.get("interrupted") for m in models)
-    use_oe = ctx["use_oe"]
+    models, stop = _refine(est, ctx, records) if refined is None else refined
     if est.wants_post_sr():
         models, stop = _post_sr(est, models, prepared, seeds, stop)
-    models, stop = _output_error(models, prepared, records, use_oe, oe_settings, preset, est.progress, stop,
-                                 strict=mode == "output-error")
+        models, stop = _refine(est, ctx, records, models, stop)
     for k, m in enumerate(models):
         m.method = method
         if stop:
@@ -238,7 +247,10 @@ def _post_sr(est, models, prepared, seeds, stop):
     for m, s, tr in zip(models, seeds, prepared):
         if not stop:
             try:
-                done.append(distill_model(m, sr_options=dict(est.sr_options or {}), random_state=int(s), traj=tr))
+                d = distill_model(m, sr_options=dict(est.sr_options or {}), random_state=int(s), traj=tr)
+                if "output_error" in d.info:  # the curves' refinement; the closed forms get their own
+                    d.info["output_error_before_post_sr"] = d.info.pop("output_error")
+                done.append(d)
                 continue
             except KeyboardInterrupt:
                 stop = True
