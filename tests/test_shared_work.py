@@ -87,7 +87,8 @@ def test_post_sr_of_a_measured_record_distils_the_output_error_curves():
     that output error refined gives z**3 - z and 0.3 z (worst RMSE 9.1e-4)."""
     from charcurves.metrics import curve_errors
 
-    job = next(j for j in Sweep(methods=["nn-cc"], snr_db=[40], realizations=1, noise_on="state").jobs())
+    job = next(j for j in Sweep(systems=["duffing"], methods=["nn-cc"], snr_db=[40], realizations=1,
+                                noise_on="state").jobs())
     system = get_system("duffing")
     record = corrupt(system.simulate(job.t_end, job.n_points), 40, on="state", seed=job.noise_seed)
     plain, closed = fit_with_post_sr(CharacteristicCurves(method="nn-cc", threads=1),
