@@ -127,10 +127,12 @@ def prepare_record(record, template: EquationTemplate, sym: dict, differentiator
     for cname, z in template.arguments_of(record).items():
         if sym.get(cname, "none") != "none" and (z.min() >= 0 or z.max() <= 0):
             fix = without_prior(cname, sym) if without_prior is not None else "drop it"
+            where = "the record as the differentiator smoothed it" if estimated else "the record"
             raise IdentifiabilityError(
                 f"an {sym[cname]} prior on {cname} needs its argument {template.arguments[cname]} on both "
-                f"sides of 0, but the record covers only [{z.min():.3g}, {z.max():.3g}], so the prior can be "
+                f"sides of 0, but {where} covers only [{z.min():.3g}, {z.max():.3g}], so the prior can be "
                 f"neither checked nor used; {fix} or give a record that crosses 0"
+                + (" (a record whose noise swamps the signal smooths to its slow part)" if estimated else "")
             )
     return record, estimated
 
