@@ -248,7 +248,7 @@ def _g3(x: float) -> str:
     return f"{x:.3g}"
 
 
-@pytest.mark.skipif(not (APPENDIX_F / "appendix_f_default.csv").exists(),
+@pytest.mark.skipif(not (APPENDIX_F / "appendix_f_default.csv.gz").exists(),
                     reason="the committed Appendix F run is not in this checkout")
 def test_appendix_f_is_what_the_docs_say():
     """The Appendix F run (noise on x; the paper's protocol beside the default on the same records): every
