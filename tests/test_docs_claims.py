@@ -293,3 +293,35 @@ def test_appendix_f_is_what_the_docs_say():
         better = int((worst_d[sel] < worst_p[sel]).sum())
         median = float(np.median(worst_p[sel] / worst_d[sel]))
         assert f"{better} of {int(sel.sum())}" in text and f"median ratio {median:.3g}×" in text, (system, better, median)
+
+
+def test_deviations_states_the_default_preset_as_the_code_has_it():
+    """Item 10 of deviations.md names the default preset's network and budgets: read them from the preset."""
+    from charcurves.fitting import PRESETS
+
+    p = PRESETS["default"]
+    text = _section(_page("deviations.md"), "### 10. Default training", "### 11.")
+    hidden = ",".join(str(h) for h in p.hidden)
+    assert f"a ({hidden},) {p.activation} MLP" in text
+    assert f"{p.adam_steps} Adam steps (lr 1e{round(np.log10(p.adam_lr))})" in text
+    assert f"up to {p.lm_max_iter} Levenberg–Marquardt iterations" in text
+    assert f"{p.n_starts} random starts per model" in text
+    assert f"within {p.combine_tol:.0%} of the best loss" in text.replace("2 %", "2%")
+
+
+def test_no_page_names_an_api_that_does_not_exist():
+    """Call spellings of the docs that name a keyword of a public function must match its signature."""
+    import importlib
+    import inspect
+
+    import charcurves as cc
+
+    spaces = [cc] + [importlib.import_module(f"charcurves.{p}") for p in (
+        "data", "io", "systems", "templates", "curves", "fitting", "symbolic", "simulate", "metrics", "selection",
+        "experiments", "report")]
+    for page in DOCS:
+        text = page.read_text(encoding="utf-8")
+        for name, kw in re.findall(r"`(\w+)\(\.\.\., (\w+)=", text):
+            func = next((getattr(m, name) for m in spaces if hasattr(m, name)), None)
+            assert func is not None, f"{page.name}: {name} is not a public name of charcurves"
+            assert kw in inspect.signature(func).parameters, f"{page.name}: {name}() has no {kw}="
