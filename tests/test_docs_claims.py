@@ -325,3 +325,21 @@ def test_no_page_names_an_api_that_does_not_exist():
             func = next((getattr(m, name) for m in spaces if hasattr(m, name)), None)
             assert func is not None, f"{page.name}: {name} is not a public name of charcurves"
             assert kw in inspect.signature(func).parameters, f"{page.name}: {name}() has no {kw}="
+
+
+def test_the_equation_error_penalty_range_is_the_committed_one():
+    """choosing.md and measured-records.md quote the range of equation error's mean worst-curve RMSE over output
+    error's (the same method and differentiator) from benchmarks/results/state_noise.json."""
+    import collections
+    import json
+
+    rows = json.loads((ROOT / "benchmarks" / "results" / "state_noise.json").read_text())["rows"]
+    runs = collections.defaultdict(list)
+    for r in rows:
+        runs[(r["system"], r["snr"], r["label"], r["objective"], r["differentiator"])].append(r["worst"])
+    mean = {k: float(np.mean(v)) for k, v in runs.items()}
+    ratios = [mean[k] / mean[k[:3] + ("auto", k[4])] for k in mean
+              if k[3] == "equation-error" and k[:3] + ("auto", k[4]) in mean]
+    quoted = f"{min(ratios):.1f}–{max(ratios):.1f}×"
+    for page in ("choosing.md", "measured-records.md"):
+        assert f"Equation error alone is {quoted} worse" in _page(page), (page, quoted)
