@@ -278,6 +278,12 @@ def test_appendix_f_is_what_the_docs_say():
     failed = frames["default"][frames["default"]["status"] != "ok"]
     assert all(str(e).startswith("IdentifiabilityError: an odd prior on f2") for e in failed["error"])
     assert {0: "every one `ok`.", 4: "every one `ok` but four:"}[len(failed)] in text
+    # run without --full: the symbolic searches had the quick grid's budget, and the page says so
+    import json
+
+    run = json.loads((APPENDIX_F / "run.json").read_text(encoding="utf-8"))
+    assert run["full"] is False and run["sizes"]["sr_generations"] == 20
+    assert "SR, SR-CC and SR-CC+refit searched with the quick grid's budget, 20 Operon generations instead of 40" in text
     rows = {(s, m): r for s, m, *r in _a_rows(frames)}
     quoted = re.findall(r"\| (Duffing|stick-slip) \| ([a-z+-]+) \| ([^|]+) \| ([^|]+) \| ([^|]+) \| ([^|]+) \| ([^|]+) \| "
                         r"([^|]+) \|", text)
