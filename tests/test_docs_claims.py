@@ -322,6 +322,13 @@ def test_the_typed_figures_of_the_benchmark_page_are_the_committed_ones():
     failed = full[full["status"] != "ok"]
     assert len(failed) == 10 and set(failed["method"]) == {"sindy"} and set(failed["system"]) == {"stick-slip"}
     assert (failed["snr_db"] < 0).all() and "10 stick-slip SINDy jobs below 0 dB failed" in text
+    # the stage times of run.json add up to the end-to-end wall time the page gives (the report took seconds)
+    run = json.loads((STUDY.parent / "run.json").read_text(encoding="utf-8"))
+    assert run["skip"] == ["sensitivity", "appendix-f"] and round(sum(run["timing"].values()) / 60) == 103
+    assert "--full --skip sensitivity,appendix-f" in text and "1 h 43 min on 2 cores" in text
+    duff = full[(full["system"] == "duffing") & (full["preset"] == "default")]
+    ratio = [a / p for a, p in zip(_a(duff, "nn-cc+sym+post-sr"), _a(duff, "parametric"))]
+    assert all(1 < r < 1.02 for r in ratio) and "NN-CC+sym+post-SR is within 2 % of Parametric on Duffing" in text
     # the t_sep thresholds where the defaults fail at a higher SNR than the paper (Fig. 8's "fails at SNR <~ X")
     t_l = json.loads((STUDY.parent / "extras.json").read_text(encoding="utf-8"))["lyapunov"]["value"]["T_L"]
     ours = tsep_failure_snr(full[full["system"] == "duffing"], t_l)
