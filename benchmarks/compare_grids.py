@@ -3,7 +3,7 @@
 Usage: ``python benchmarks/compare_grids.py BEFORE/results.csv AFTER/results.csv``. Jobs are matched by
 (method, SNR, realisation), which fixes the record (the dataset seed derives from them and the base
 seed); the statistic is the geometric mean over the matched realisations. Used for the core refactor
-(docs/benchmark.md: "The one fitting path against the full-grid run").
+(benchmarks/results/core-check/PROVENANCE.md).
 """
 import csv, sys, collections, math
 def load(p):

@@ -9,6 +9,8 @@ make_validation_cases(system, n, seed=)    random conditions whose true trajecto
 evaluate_forward(model, system, cases)     t_sep (ε = 0.2, censored) and RMSE[x] per case
 run_benchmark(out_dir, ...)                the paper's study: sweeps, tables, figures, report.md/.html
 build_report(out_dir)                      rebuild the report from results.csv, run.json, extras.json alone
+docs_tables(results_root)                  the docs' headline tables from the committed results folders
+fill_table_markers(text, tables)           write them between a page's <!-- table:NAME --> markers
 ray_ensemble_fitter(address)               select_family's ensemble fits as Ray tasks on a cluster
 
 Examples
@@ -21,6 +23,8 @@ Examples
 
 from ._benchmark import BenchmarkResult as BenchmarkResult
 from ._benchmark import run_benchmark as run_benchmark
+from ._docs_tables import docs_tables as docs_tables
+from ._docs_tables import fill_table_markers as fill_table_markers
 from ._report_inputs import build_report as build_report
 from ._remote import ray_ensemble_fitter as ray_ensemble_fitter
 from ._runner import Job as Job
@@ -74,6 +78,8 @@ __all__ = [
     "ValidationSet",
     "cached_validation_cases",
     "dataset_seed",
+    "docs_tables",
+    "fill_table_markers",
     "default_fit_options",
     "evaluate_forward",
     "job_key",
