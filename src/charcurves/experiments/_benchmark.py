@@ -53,12 +53,14 @@ __all__ = [
 
 #: Side studies that ``skip`` may leave out.
 BENCHMARK_SECTIONS = ("forward", "lyapunov", "miw", "sensitivity", "appendix-f")
+"""The side studies of :func:`run_benchmark` that ``skip`` (``--skip``) may leave out."""
 #: Columns of results.csv, in order (one row per (system, method, snr_db, realization[, preset]) job).
 RESULT_COLUMNS = ("system", "method", "snr_db", "realization", "rmse_f1", "rmse_f2", "status", "preset",
                   "variant", "noise_on", "eta", "rmse_x", "t_sep", "n_cases", "n_failed_cases", "n_censored",
                   "seconds", "fit_seconds", "gain", "loss", "error", "mixed_terms")
 BENCHMARK_TAG = "benchmark"
 SYSTEMS = ("duffing", "stick-slip")
+"""The paper's two benchmark systems, what :func:`run_benchmark` runs by default (``--systems``)."""
 MIW_METHODS = ("nn-cc", "nn-cc+sym", "nn-cc+sym+post-sr")
 #: The order of the paper's figures: increasing prior knowledge within each family.
 METHOD_GROUPS = {
@@ -79,7 +81,16 @@ FULL: dict[str, Any] = {
 
 # ---------------------------------------------------------------------- option parsing
 def parse_snr_list(text: str) -> tuple[float, ...]:
-    """``"40,20,0"`` -> (40.0, 20.0, 0.0); ``inf`` allowed. Raises ConfigError on anything else."""
+    """``"40,20,0"`` -> (40.0, 20.0, 0.0); ``inf`` allowed. Raises ConfigError on anything else.
+
+    How ``charcurves benchmark --snr`` is read (repeated levels are kept once, in order).
+
+    Examples
+    --------
+    >>> from charcurves.experiments import parse_snr_list
+    >>> parse_snr_list("40, 20, inf, 40")
+    (40.0, 20.0, inf)
+    """
     parts = [p.strip() for p in str(text).split(",")]
     if not parts or any(not p for p in parts):
         raise ConfigError(f"--snr must be comma-separated dB values such as 40,20,0, got {text!r}")
@@ -96,7 +107,20 @@ def parse_snr_list(text: str) -> tuple[float, ...]:
 
 
 def parse_name_list(text: str, allowed: Sequence[str], what: str) -> tuple[str, ...]:
-    """``"a,b"`` -> ("a", "b"), each checked against ``allowed`` (ConfigError naming the bad one)."""
+    """``"a,b"`` -> ("a", "b"), each checked against ``allowed`` (ConfigError naming the bad one).
+
+    How ``charcurves benchmark --systems/--methods/--skip`` are read; ``what`` is the option's name.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import BENCHMARK_SYSTEMS, parse_name_list
+    >>> parse_name_list("stick-slip,duffing", BENCHMARK_SYSTEMS, "systems")
+    ('stick-slip', 'duffing')
+    >>> parse_name_list("duffing,vdp", BENCHMARK_SYSTEMS, "systems")
+    Traceback (most recent call last):
+    ...
+    charcurves._errors.ConfigError: unknown system 'vdp' in --systems; choose from duffing, stick-slip
+    """
     names = tuple(dict.fromkeys(p.strip() for p in str(text).split(",") if p.strip()))
     if not names:
         raise ConfigError(f"--{what} needs at least one name; choose from {', '.join(allowed)}")

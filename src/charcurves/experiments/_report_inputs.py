@@ -47,7 +47,7 @@ def write_run_file(out_dir: str, run: Mapping[str, Any]) -> str:
     ``"previous"``, oldest first, each with what it ran and its stage times, so that the report
     can show every invocation's cost and not only the last one's.
     """
-    from ..io._csv import atomic_write_bytes
+    from ..io import atomic_write_bytes
     from ._store import _jsonable
 
     path = os.path.join(out_dir, RUN_FILE)
@@ -204,7 +204,7 @@ def build_report(out_dir: str | os.PathLike, *, timing: Mapping[str, float] | No
 def write_report(out_dir: str | os.PathLike, inputs: tuple, *, timing: Mapping[str, float] | None = None
                  ) -> tuple[str, str]:
     """Write the report from ``inputs``, the tuple :func:`load_report_inputs` read from ``out_dir``."""
-    from ..report._html import Report
+    from ..report import Report
     from . import _report_sections as sections
 
     df, run, extras, af = inputs
