@@ -10,9 +10,9 @@ from typing import Any
 import numpy as np
 
 from . import _paper_values as paper
-from ._benchmark import (
+from ._results import METHOD_GROUPS
+from ._tables import (
     BIAS_LIMITED,
-    METHOD_GROUPS,
     NN_X_ETA_MAX,
     a_fit_table,
     cost_table,
