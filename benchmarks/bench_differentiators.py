@@ -300,13 +300,15 @@ def main(argv: list[str] | None = None) -> None:
     print(f"\nwall {wall:.0f} s with {args.workers} worker(s); load average at start {load0[0]:.2f}, at end {load1[0]:.2f}")
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    payload = {"settings": {**vars(args), "statistic": f"mean over {args.seeds} noise seeds"},
+    repo = Path(__file__).resolve().parents[1]
+    shown = str(out.resolve().relative_to(repo)) if out.resolve().is_relative_to(repo) else str(out)  # no machine path
+    payload = {"settings": {**vars(args), "out": shown, "statistic": f"mean over {args.seeds} noise seeds"},
                "load_average": {"start": load0, "end": load1}, "wall_seconds": wall, "cpu_count": os.cpu_count(),
                "summary": summary, "rows": rows}
     tmp = out.with_suffix(".tmp")
     tmp.write_text(json.dumps(payload, indent=1, default=float))
     os.replace(tmp, out)
-    print(f"wrote {out}")
+    print(f"wrote {shown}")
 
 
 if __name__ == "__main__":

@@ -28,7 +28,9 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-SILVERBOX = HERE.parent.parent / "shared" / "real-data" / "silverbox" / "SNLS80mV.csv"
+#: $SILVERBOX_CSV, else silverbox/SNLS80mV.csv of $CHARCURVES_DATA_DIR or ../shared/real-data (docs/silverbox.md)
+SILVERBOX = Path(os.environ.get("SILVERBOX_CSV") or Path(os.environ.get("CHARCURVES_DATA_DIR") or HERE.parent.parent
+                 / "shared" / "real-data") / "silverbox" / "SNLS80mV.csv")
 SILVERBOX_ARGS = ["--x-col", "V2", "--force-col", "V1", "--sample-rate", "610.3515625", "--rows", "40650:105712",
                   "--family", "separable", "--method", "nn-cc+sym+post-sr", "--sym", "f1=odd,f2=odd", "--free-gain"]
 

@@ -13,7 +13,7 @@ nonlinear system identification. The script walks through what a user with such 
 3. fit the separable family ``x'' + f1(x') + f2(x) + b = g F`` with odd NN curves and a free gain
    (NN-CC+sym) and distil the curves into closed forms (post-SR);
 4. refine the closed-form coefficients by output error (free-run simulation error on the
-   estimation data; charcurves.fitting._output_error.refine_output_error, what the CLI does by
+   estimation data; charcurves.fitting.refine_output_error, what the CLI does by
    default for free-gain records) -- in three input conventions, see below;
 5. simulate the identified models freely on the three test segments and report RMSE in mV, with a
    figure of measured vs simulated output; cross-check one run with charcurves.simulate.simulate_model.
@@ -33,7 +33,9 @@ Outputs in --out (default ``silverbox-out``): ``results.json`` (every number bel
 
 ``--quick`` runs on a 4096-sample estimation slice and a 4096-sample multisine test slice (about 1 min).
 The data: ``SNLS80mV.csv`` from the benchmark's ``SilverboxFiles.zip`` (nonlinearbenchmark.org);
-give its path with --data or the environment variable SILVERBOX_CSV.
+give its path with --data or the environment variable SILVERBOX_CSV, or name the folder that holds
+``silverbox/SNLS80mV.csv`` with CHARCURVES_DATA_DIR (default: ``../shared/real-data`` from the
+repository root).
 """
 
 from __future__ import annotations
@@ -43,6 +45,7 @@ import json
 import os
 import sys
 import time
+from typing import NoReturn
 
 import numpy as np
 
@@ -70,7 +73,9 @@ CONVENTIONS = {
     "discrete-rk4": ("linear", 1),
     "linear-input": ("linear", 4),
 }
-DEFAULT_DATA = "/work/shared/real-data/silverbox/SNLS80mV.csv"
+#: The record inside a real-data folder: $CHARCURVES_DATA_DIR, else ../shared/real-data from the
+#: repository root (where the project keeps its measured records) when that folder exists.
+DATA_FILE = os.path.join("silverbox", "SNLS80mV.csv")
 SPLINE_BLOCK = 512  # the smoothing spline runs on blocks (see block_derivatives)
 
 
@@ -82,15 +87,30 @@ def say(msg: str) -> None:
 def find_data(path: str | None) -> str:
     if path is not None:
         if not os.path.isfile(path):
-            raise SystemExit(f"silverbox: no file {path!r}; give the path of SNLS80mV.csv with --data")
+            _fail(f"silverbox: no file {path!r}; give the path of SNLS80mV.csv with --data")
         return path
-    for cand in (os.environ.get("SILVERBOX_CSV"), DEFAULT_DATA):
+    for cand in (os.environ.get("SILVERBOX_CSV"), os.path.join(data_dir(), DATA_FILE)):
         if cand and os.path.isfile(cand):
             return cand
-    raise SystemExit(
+    _fail(
         "silverbox: no data file; download SilverboxFiles.zip from nonlinearbenchmark.org and pass "
-        "--data path/to/SNLS80mV.csv (or set SILVERBOX_CSV)"
+        "--data path/to/SNLS80mV.csv (or set SILVERBOX_CSV, or CHARCURVES_DATA_DIR to the folder holding "
+        f"{DATA_FILE})"
     )
+
+
+def _fail(message: str) -> NoReturn:
+    """Bad input: one line on stderr, exit code 2."""
+    print(message, file=sys.stderr)
+    raise SystemExit(2)
+
+
+def data_dir() -> str:
+    """The folder of real-data records: $CHARCURVES_DATA_DIR, else ../shared/real-data beside the repository."""
+    if os.environ.get("CHARCURVES_DATA_DIR"):
+        return os.environ["CHARCURVES_DATA_DIR"]
+    repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    return os.path.join(os.path.dirname(repo), "shared", "real-data")
 
 
 def load(path: str, est_rows: tuple[int, int]):
@@ -222,7 +242,7 @@ def equation_error_fit(d):
 
 
 def refine(model, d, convention: str, segment_length: int = 256) -> dict:
-    """Output-error refinement by the library (charcurves.fitting._output_error.refine_output_error).
+    """Output-error refinement by the library (charcurves.fitting.refine_output_error).
 
     All coefficients of the closed forms, g and b are fitted to the free-run simulation of the
     estimation split, cut into segments of 256 samples with free initial states (multiple

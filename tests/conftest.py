@@ -1,4 +1,5 @@
 import os
+from pathlib import Path
 
 # Tests run on small shared machines: one torch/BLAS thread per process is fastest there.
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -64,3 +65,22 @@ def turning_pendulum():
                     t_eval=t, rtol=1e-10, atol=1e-10)
     x, v = sol.y
     return corrupt(Trajectory(t=t, x=x, F=force(t), v=v, a=force(t) - 0.2 * v - 9.81 * np.sin(x)), 30.0, seed=0)
+
+
+def real_data_file(relative: str) -> Path:
+    """A measured record in the real-data folder: $CHARCURVES_DATA_DIR, else ../shared/real-data from the
+    repository root (docs/silverbox.md)."""
+    folder = os.environ.get("CHARCURVES_DATA_DIR") or Path(__file__).resolve().parents[2] / "shared" / "real-data"
+    return Path(folder) / relative
+
+
+@pytest.fixture(scope="session")
+def silverbox_csv() -> Path:
+    """The Silverbox record SNLS80mV.csv: $SILVERBOX_CSV, else silverbox/SNLS80mV.csv of the real-data
+    folder; a test that needs it skips, saying where it looked, when the file is not there."""
+    given = os.environ.get("SILVERBOX_CSV")
+    path = Path(given) if given else real_data_file(os.path.join("silverbox", "SNLS80mV.csv"))
+    if not path.is_file():
+        pytest.skip(f"the real Silverbox record SNLS80mV.csv is not at {path}; set SILVERBOX_CSV to the file, "
+                    "or CHARCURVES_DATA_DIR to the folder that holds silverbox/SNLS80mV.csv")
+    return path

@@ -132,3 +132,34 @@ def test_a_user_written_representation_plugs_into_every_objective(tmp_path, duff
     # the fit ended "the free run did not improve"); the guard undoes them and the member goes on stepwise
     assert oe.info["output_error"]["evidence_sweeps_undone"] == 1
     assert curve_errors(oe, system.true_curves())["f1"] < 1e-3
+
+
+def test_a_saved_linear_curve_rebuilds_only_a_registered_representation():
+    """The table of loadable representations (curves/_loadable.py): a model file names the class, and
+    only a class given to register_curve is rebuilt; a representation nested in another cannot be saved."""
+    import torch
+
+    from charcurves import ModelFileError
+    from charcurves.curves import LinearCurve, LinearFittedCurve, Polynomial, curve_from_spec, register_curve
+
+    class Ramp(LinearCurve):  # f(u) = c u
+        def __init__(self, inner=None):
+            self.inner = inner
+
+        def features(self, u):
+            return torch.stack([u], dim=-1)
+
+    curve = LinearFittedCurve("f2", "x", (-2.0, 2.0), Ramp(), np.array([3.0]), 0.0, 2.0)
+    spec, arrays = curve.to_spec()
+    assert spec["representation"] == "Ramp" and spec["parameters"] == {"inner": None}
+    with pytest.raises(ModelFileError, match="'Ramp', which is not registered in this process"):
+        curve_from_spec(spec, arrays)
+    assert register_curve(Ramp) is Ramp
+    again = curve_from_spec(spec, arrays)
+    assert type(again.representation) is Ramp
+    assert float(again(1.0)) == float(curve(1.0)) == 1.5  # 3 * (1 - 0) / 2
+    nested = LinearFittedCurve("f2", "x", (-2.0, 2.0), Ramp(inner=Polynomial(degree=1)), np.array([3.0]))
+    with pytest.raises(ModelFileError, match="curve f2: nested representations cannot be saved"):
+        nested.to_spec()
+    with pytest.raises(ConfigError, match="register_curve takes a LinearCurve subclass"):
+        register_curve(Polynomial(degree=1))

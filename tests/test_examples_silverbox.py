@@ -13,29 +13,17 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "examples" / "silverbox.py"
-#: The Silverbox measurements: $SILVERBOX_CSV, else the shared data folder beside the repository
-#: (../shared/real-data/silverbox/SNLS80mV.csv from the repository root), else the repository's own
-#: data/silverbox/ (where a checkout without the shared folder can put the file).
-_CANDIDATES = [ROOT.parent / "shared" / "real-data" / "silverbox" / "SNLS80mV.csv",
-               ROOT / "data" / "silverbox" / "SNLS80mV.csv"]
-SILVERBOX = Path(os.environ["SILVERBOX_CSV"]) if os.environ.get("SILVERBOX_CSV") else \
-    next((p for p in _CANDIDATES if p.is_file()), _CANDIDATES[0])
 PUBLISHED = {"c": 41.0, "k1": 1.850e5, "k3": 7.47e5, "g": 1.947e5}
-
-pytestmark = pytest.mark.skipif(
-    not SILVERBOX.is_file(),
-    reason=f"the real Silverbox record SNLS80mV.csv is not at {SILVERBOX}"
-           + ("" if os.environ.get("SILVERBOX_CSV") else f" nor {_CANDIDATES[1]}")
-           + "; set SILVERBOX_CSV to its path to run these tests",
-)
+# The record comes from the silverbox_csv fixture (tests/conftest.py): $SILVERBOX_CSV, else
+# silverbox/SNLS80mV.csv in $CHARCURVES_DATA_DIR or ../shared/real-data; every test here skips without it.
 
 
 @pytest.fixture(scope="module")
-def quick_run(tmp_path_factory):
+def quick_run(tmp_path_factory, silverbox_csv):
     out = tmp_path_factory.mktemp("silverbox")
     env = dict(os.environ, OMP_NUM_THREADS="1", MPLBACKEND="Agg")
     proc = subprocess.run(
-        [sys.executable, str(SCRIPT), "--quick", "--data", str(SILVERBOX), "--out", str(out)],
+        [sys.executable, str(SCRIPT), "--quick", "--data", str(silverbox_csv), "--out", str(out)],
         capture_output=True, text=True, timeout=300, env=env, cwd=str(ROOT),
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
@@ -142,11 +130,11 @@ def _duffing_from_result(res):
     return float(f1.coeff_monomial(z)), float(f2.coeff_monomial(z)), float(f2.coeff_monomial(z**3)), res["gain"]
 
 
-def test_cli_refines_a_slice_to_the_published_coefficients(tmp_path, capsys):
+def test_cli_refines_a_slice_to_the_published_coefficients(tmp_path, capsys, silverbox_csv):
     """Fast tier: the issue's command on a 4096-sample slice with the Duffing basis (least squares
     instead of NN + post-SR); the default --refine auto refines it by output error."""
     out = tmp_path / "fit"
-    text = _cli(["fit", SILVERBOX, *ISSUE_ARGS, "--rows", "40650:44746", "--method", "parametric", "--basis",
+    text = _cli(["fit", silverbox_csv, *ISSUE_ARGS, "--rows", "40650:44746", "--method", "parametric", "--basis",
                  "f1=z; f2=z, z**3", "--out", out, "--no-figure"], capsys)
     res = json.loads((out / "result.json").read_text())
     c, k1, k3, g = _duffing_from_result(res)
@@ -156,24 +144,24 @@ def test_cli_refines_a_slice_to_the_published_coefficients(tmp_path, capsys):
     assert oe["hold"] == "linear" and oe["substeps"] == 4
     assert oe["free_run_rmse_after"] < 1.0e-3 and oe["free_run_rmse_before"] > 2e-3  # volts
     assert "closed form: x'' + " in text
-    text = _cli(["validate", out / "model", SILVERBOX, "--x-col", "V2", "--force-col", "V1", "--sample-rate",
+    text = _cli(["validate", out / "model", silverbox_csv, "--x-col", "V2", "--force-col", "V1", "--sample-rate",
                  "610.3515625", "--rows", "105712:109808"], capsys)
     rmse = float(text.split("RMSE ")[1].split()[0])
     assert rmse < 1.0e-3  # V: ~0.91 mV on this multisine slice (published Duffing fit: 0.95 mV on the full test)
 
 
 @pytest.mark.slow
-def test_issue_cli_command_on_the_full_split(tmp_path, capsys):
+def test_issue_cli_command_on_the_full_split(tmp_path, capsys, silverbox_csv):
     """Slow tier (~5-15 min): the issue's exact command; coefficients within 3 % of the published
     ones and a multisine free-run RMSE <= 1.5 mV."""
     out = tmp_path / "fit"
-    _cli(["fit", SILVERBOX, *ISSUE_ARGS, "--rows", "40650:105712", "--method", "nn-cc+sym+post-sr", "--sym",
+    _cli(["fit", silverbox_csv, *ISSUE_ARGS, "--rows", "40650:105712", "--method", "nn-cc+sym+post-sr", "--sym",
           "f1=odd,f2=odd", "--out", out, "--no-figure"], capsys)
     res = json.loads((out / "result.json").read_text())
     c, k1, k3, g = _duffing_from_result(res)
     for name, value in zip(("c", "k1", "k3", "g"), (c, k1, k3, g)):
         assert _rel(value, PUBLISHED[name]) < 0.03, (name, value)
-    text = _cli(["validate", out / "model", SILVERBOX, "--x-col", "V2", "--force-col", "V1", "--sample-rate",
+    text = _cli(["validate", out / "model", silverbox_csv, "--x-col", "V2", "--force-col", "V1", "--sample-rate",
                  "610.3515625", "--rows", "105712:127400", "--out", tmp_path / "val"], capsys)
     val = json.loads((tmp_path / "val" / "validation.json").read_text())
     assert val["segments"][0]["rmse"] < 1.5e-3, text

@@ -16,7 +16,6 @@ from charcurves._errors import CharCurvesError, DataError
 from charcurves.data import MIN_SAMPLES, Trajectory
 from charcurves.io._csv import read_csv_columns, write_csv_columns
 
-SILVERBOX = Path("/work/shared/real-data/silverbox/SNLS80mV.csv")
 SILVERBOX_RATE = 610.3515625  # Hz: 10 MHz / 2**14
 
 
@@ -338,9 +337,8 @@ def test_empty_named_column_with_values_is_kept(tmp_path):
     assert {k: v.tolist() for k, v in cols.items()} == {"a": [1.0, 4.0], "column2": [2.0, 5.0], "c": [3.0, 6.0]}
 
 
-@pytest.mark.skipif(not SILVERBOX.is_file(), reason=f"real Silverbox data not present at {SILVERBOX}")
-def test_real_silverbox_file():
-    tr = Trajectory.from_csv(SILVERBOX, sample_rate=SILVERBOX_RATE, x_col="V2", force_col="V1",
+def test_real_silverbox_file(silverbox_csv):
+    tr = Trajectory.from_csv(silverbox_csv, sample_rate=SILVERBOX_RATE, x_col="V2", force_col="V1",
                              rows=slice(40650, 105712))
     assert tr.n_samples == 65062
     assert tr.dt == pytest.approx(1 / SILVERBOX_RATE, rel=1e-12)

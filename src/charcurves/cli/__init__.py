@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"charcurves: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
-        from ..experiments._sweep import SweepInterrupted
+        from ..experiments import SweepInterrupted
 
         if isinstance(exc, SweepInterrupted):  # benchmark: finished rows are stored, a rerun resumes
             print(f"charcurves: {exc}", file=sys.stderr)

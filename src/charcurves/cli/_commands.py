@@ -13,7 +13,7 @@ __all__ = ["cmd_simulate", "cmd_validate", "cmd_select", "cmd_benchmark", "cmd_r
 def cmd_simulate(a) -> int:
     from ..data import corrupt
     from ..systems import get_system
-    from ..systems._base import sample_times
+    from ..systems import sample_times
 
     system = get_system(a.system, a.variant)
     sample_times(a.t_end, a.n_points)  # the bounds, before any integration
@@ -59,7 +59,7 @@ def cmd_report(a) -> int:
 
 
 def cmd_select(a) -> int:
-    from ..selection._cli import run_select
+    from ._select import run_select
 
     address = ray_address(a)
     fit = None
@@ -143,7 +143,7 @@ def ray_address(a) -> str | None:
 
 
 def cmd_benchmark(a) -> int:
-    from ..experiments._benchmark import BENCHMARK_SECTIONS, SYSTEMS, parse_name_list, parse_snr_list, run_benchmark
+    from ..experiments import BENCHMARK_SECTIONS, BENCHMARK_SYSTEMS as SYSTEMS, parse_name_list, parse_snr_list, run_benchmark
     from ..fitting import METHODS
 
     if a.report_only:

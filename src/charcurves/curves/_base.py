@@ -30,7 +30,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .._errors import ConfigError, ModelFileError
+from .._errors import ConfigError
+from ._fitted import LinearFittedCurve
+from ._loadable import registered_curve, remember_curve
 
 __all__ = ["AbstractCurve", "LinearCurve", "LinearParametrisation", "register_curve", "registered_curve",
            "SYMMETRY_NAMES", "normalise_symmetry"]
@@ -217,8 +219,6 @@ class LinearCurve(AbstractCurve):
         return bool(torch.all(self.features(torch.zeros(1, dtype=torch.float64)).abs() < 1e-300))
 
     def fitted(self, name, argument, domain, theta, center, half_width, out_scale, constant: float = 0.0):
-        from ._fitted import LinearFittedCurve
-
         coef = np.asarray(theta, dtype=float).mean(axis=0) * out_scale
         return LinearFittedCurve(name, argument, domain, self, coef, center, half_width, constant)
 
@@ -301,9 +301,6 @@ class LinearParametrisation:
         return [(k, phi[..., k], False) for k in range(self.n_params)]
 
 
-_REGISTRY: dict[str, type] = {}
-
-
 def register_curve(cls: type) -> type:
     """Make a user-written :class:`LinearCurve` subclass loadable from model files (by class name).
 
@@ -333,14 +330,4 @@ def register_curve(cls: type) -> type:
     """
     if not (isinstance(cls, type) and issubclass(cls, LinearCurve)):
         raise ConfigError(f"register_curve takes a LinearCurve subclass, got {cls!r}")
-    _REGISTRY[cls.__name__] = cls
-    return cls
-
-
-def registered_curve(name: str) -> type:
-    """The registered LinearCurve subclass of that name (ModelFileError when unknown)."""
-    if name not in _REGISTRY:
-        raise ModelFileError(f"the model uses the curve representation {name!r}, which is not registered in this "
-                             "process; import its module and call charcurves.curves.register_curve on it before "
-                             "loading")
-    return _REGISTRY[name]
+    return remember_curve(cls)

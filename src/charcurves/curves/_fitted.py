@@ -10,6 +10,7 @@ import numpy as np
 from .._errors import ModelFileError
 from .._lambdify import numpy_function
 from ._expr import monomial_power, parse_basis_function
+from ._loadable import registered_curve
 from ._neural import NeuralCurve, jump_log_eps
 
 __all__ = ["FittedCurve", "NeuralFittedCurve", "BasisFittedCurve", "SymbolicFittedCurve", "LinearFittedCurve"]
@@ -461,11 +462,9 @@ class LinearFittedCurve(FittedCurve):
         return (phi @ self.coefficients + self.constant).reshape(z.shape)
 
     def to_spec(self):
-        from ._base import AbstractCurve
-
         d = self._base_spec()
         params = self.representation.get_params()
-        if any(isinstance(v, AbstractCurve) for v in params.values()):
+        if any(hasattr(v, "get_params") for v in params.values()):  # a representation (or estimator) inside
             raise ModelFileError(f"curve {self.name}: nested representations cannot be saved")
         d.update(representation=type(self.representation).__name__, parameters=_plain(params),
                  center=self.center, half_width=self.half_width, constant=self.constant)
@@ -473,8 +472,6 @@ class LinearFittedCurve(FittedCurve):
 
     @classmethod
     def from_spec(cls, d, arrays):
-        from ._base import registered_curve
-
         rep = registered_curve(str(d.get("representation")))(**dict(d.get("parameters") or {}))
         key = f"{d['name']}.coefficients"
         if key not in arrays:

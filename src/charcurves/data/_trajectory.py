@@ -248,7 +248,7 @@ class Trajectory(_SampledRecord):
     @classmethod
     def from_csv(cls, path: str | os.PathLike, **kwargs: Any) -> Trajectory:
         """Read a CSV file with a header row; keyword arguments as in :meth:`from_dataframe`."""
-        from ..io._csv import read_csv_columns
+        from ..io import read_csv_columns
 
         columns = read_csv_columns(path)
         kwargs.setdefault("name", os.path.splitext(os.path.basename(os.fspath(path)))[0])
@@ -320,7 +320,7 @@ class Trajectory(_SampledRecord):
 
     def to_csv(self, path: str | os.PathLike) -> None:
         """Write ``t,x[,v][,a],F`` with a header (atomically)."""
-        from ..io._csv import write_csv_columns
+        from ..io import write_csv_columns
 
         write_csv_columns(path, self.to_columns())
 
@@ -431,7 +431,7 @@ class MultiTrajectory(_SampledRecord):
     @classmethod
     def from_csv(cls, path: str | os.PathLike, **kwargs: Any) -> "MultiTrajectory":
         """Read ``t,x1,x2,F1,F2[,v1,a1,v2,a2]`` (header row; any column order)."""
-        from ..io._csv import read_csv_columns
+        from ..io import read_csv_columns
 
         kwargs.setdefault("name", os.path.splitext(os.path.basename(os.fspath(path)))[0])
         return cls.from_columns(read_csv_columns(path), **kwargs)
@@ -473,6 +473,6 @@ class MultiTrajectory(_SampledRecord):
 
     def to_csv(self, path: str | os.PathLike) -> None:
         """Write ``t,x1,x2,...[,v1,a1,...],F1,F2,...`` with a header (atomically)."""
-        from ..io._csv import write_csv_columns
+        from ..io import write_csv_columns
 
         write_csv_columns(path, self.to_columns())

@@ -21,7 +21,11 @@ Examples
 12
 """
 
+from ._benchmark import BENCHMARK_SECTIONS as BENCHMARK_SECTIONS
+from ._benchmark import SYSTEMS as BENCHMARK_SYSTEMS
 from ._benchmark import BenchmarkResult as BenchmarkResult
+from ._benchmark import parse_name_list as parse_name_list
+from ._benchmark import parse_snr_list as parse_snr_list
 from ._benchmark import run_benchmark as run_benchmark
 from ._docs_tables import docs_tables as docs_tables
 from ._docs_tables import fill_table_markers as fill_table_markers
@@ -34,6 +38,7 @@ from ._store import KEY_COLUMNS as KEY_COLUMNS
 from ._store import VALUE_COLUMNS as VALUE_COLUMNS
 from ._store import ResultsStore as ResultsStore
 from ._store import job_key as job_key
+from ._executors import SweepInterrupted as SweepInterrupted
 from ._sweep import EXECUTORS as EXECUTORS
 from ._sweep import PAPER_SNR_DB as PAPER_SNR_DB
 from ._sweep import QUICK_SNR_DB as QUICK_SNR_DB
@@ -57,6 +62,8 @@ from ._validation import make_validation_cases as make_validation_cases
 from ._validation import training_box as training_box
 
 __all__ = [
+    "BENCHMARK_SECTIONS",
+    "BENCHMARK_SYSTEMS",
     "BenchmarkResult",
     "build_report",
     "ray_ensemble_fitter",
@@ -71,6 +78,7 @@ __all__ = [
     "ResultsStore",
     "RunSettings",
     "Sweep",
+    "SweepInterrupted",
     "SweepReport",
     "VALIDATION_RANGES",
     "VALUE_COLUMNS",
@@ -85,6 +93,8 @@ __all__ = [
     "job_key",
     "make_validation_cases",
     "paper_grid",
+    "parse_name_list",
+    "parse_snr_list",
     "plan_units",
     "quick_grid",
     "run_benchmark",

@@ -21,7 +21,8 @@ import os
 import numpy as np
 
 from . import _paper_values as paper
-from ._benchmark import BENCHMARK_TAG, _Context, _log, _sr_budget, _write_csv, results_frame
+from ._results import BENCHMARK_TAG, _write_csv, committed_csv, read_results_csv, results_frame
+from ._run_files import _Context, _log, _sr_budget
 from ._tables import _snr_of, _snr_text, a_fit_table, ensemble_table
 
 __all__ = ["PROTOCOLS", "appendix_f", "appendix_f_section", "protocol_frames"]
@@ -72,7 +73,6 @@ def protocol_frames(out_dir: str, *, required_for: str | None = None) -> dict:
     run whose Appendix F ran; the CSV of every protocol that run has must be there (a ConfigError
     names the missing one)."""
     from .._errors import ConfigError
-    from ._report_inputs import committed_csv, read_results_csv
 
     out = {}
     for name, (stem, _, _) in PROTOCOLS.items():

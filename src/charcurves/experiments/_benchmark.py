@@ -22,17 +22,18 @@ Examples
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 
 from .._errors import ConfigError
 from ._run_files import BenchmarkResult as BenchmarkResult
-from ._run_files import _Extras, _log
+from ._results import BENCHMARK_TAG, MIW_METHODS, RESULT_COLUMNS, _all_methods, _write_csv, empty_results_frame
+from ._results import results_frame
+from ._run_files import _Context, _Extras, _log, _sr_budget
 
 __all__ = [
     "BENCHMARK_SECTIONS",
@@ -51,21 +52,10 @@ __all__ = [
     "build_report",
 ]
 
-#: Side studies that ``skip`` may leave out.
 BENCHMARK_SECTIONS = ("forward", "lyapunov", "miw", "sensitivity", "appendix-f")
-#: Columns of results.csv, in order (one row per (system, method, snr_db, realization[, preset]) job).
-RESULT_COLUMNS = ("system", "method", "snr_db", "realization", "rmse_f1", "rmse_f2", "status", "preset",
-                  "variant", "noise_on", "eta", "rmse_x", "t_sep", "n_cases", "n_failed_cases", "n_censored",
-                  "seconds", "fit_seconds", "gain", "loss", "error", "mixed_terms")
-BENCHMARK_TAG = "benchmark"
+"""The side studies of :func:`run_benchmark` that ``skip`` (``--skip``) may leave out."""
 SYSTEMS = ("duffing", "stick-slip")
-MIW_METHODS = ("nn-cc", "nn-cc+sym", "nn-cc+sym+post-sr")
-#: The order of the paper's figures: increasing prior knowledge within each family.
-METHOD_GROUPS = {
-    "NN-CC variants": ("nn-cc", "nn-cc+post-sr", "nn-cc+sym", "nn-cc+sym+post-sr"),
-    "sparse regression / polynomial": ("sindy", "sindy-cc", "poly-cc", "sindy-cc+sym", "sindy-cc+sym+post-sr"),
-    "symbolic regression": ("sr", "sr-cc", "sr-cc+refit", "parametric"),
-}
+"""The paper's two benchmark systems, what :func:`run_benchmark` runs by default (``--systems``)."""
 
 #: The quick grid: minutes on a 2-core machine (Appendix F with one realisation per level).
 QUICK: dict[str, Any] = {
@@ -79,7 +69,16 @@ FULL: dict[str, Any] = {
 
 # ---------------------------------------------------------------------- option parsing
 def parse_snr_list(text: str) -> tuple[float, ...]:
-    """``"40,20,0"`` -> (40.0, 20.0, 0.0); ``inf`` allowed. Raises ConfigError on anything else."""
+    """``"40,20,0"`` -> (40.0, 20.0, 0.0); ``inf`` allowed. Raises ConfigError on anything else.
+
+    How ``charcurves benchmark --snr`` is read (repeated levels are kept once, in order).
+
+    Examples
+    --------
+    >>> from charcurves.experiments import parse_snr_list
+    >>> parse_snr_list("40, 20, inf, 40")
+    (40.0, 20.0, inf)
+    """
     parts = [p.strip() for p in str(text).split(",")]
     if not parts or any(not p for p in parts):
         raise ConfigError(f"--snr must be comma-separated dB values such as 40,20,0, got {text!r}")
@@ -96,7 +95,20 @@ def parse_snr_list(text: str) -> tuple[float, ...]:
 
 
 def parse_name_list(text: str, allowed: Sequence[str], what: str) -> tuple[str, ...]:
-    """``"a,b"`` -> ("a", "b"), each checked against ``allowed`` (ConfigError naming the bad one)."""
+    """``"a,b"`` -> ("a", "b"), each checked against ``allowed`` (ConfigError naming the bad one).
+
+    How ``charcurves benchmark --systems/--methods/--skip`` are read; ``what`` is the option's name.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import BENCHMARK_SYSTEMS, parse_name_list
+    >>> parse_name_list("stick-slip,duffing", BENCHMARK_SYSTEMS, "systems")
+    ('stick-slip', 'duffing')
+    >>> parse_name_list("duffing,vdp", BENCHMARK_SYSTEMS, "systems")
+    Traceback (most recent call last):
+    ...
+    charcurves._errors.ConfigError: unknown system 'vdp' in --systems; choose from duffing, stick-slip
+    """
     names = tuple(dict.fromkeys(p.strip() for p in str(text).split(",") if p.strip()))
     if not names:
         raise ConfigError(f"--{what} needs at least one name; choose from {', '.join(allowed)}")
@@ -108,81 +120,9 @@ def parse_name_list(text: str, allowed: Sequence[str], what: str) -> tuple[str, 
 
 
 # ---------------------------------------------------------------------- results
-def empty_results_frame():
-    """A results frame without rows (a `--noise-on state` run has no main sweep)."""
-    import pandas as pd
-
-    return pd.DataFrame(columns=list(RESULT_COLUMNS))
-
-
-def results_frame(store_path: str | os.PathLike, *, noise_on: str = "force", tag: str = BENCHMARK_TAG):
-    """The rows of a benchmark store as a DataFrame with :data:`RESULT_COLUMNS`.
-
-    Only rows with the benchmark's tag and the given noise target are kept; should a store hold
-    several configurations of one (system, method, SNR, realisation, preset) job (e.g. runs with
-    different numbers of validation cases), the most recently finished row wins, so the frame
-    has one row per job.
-    """
-    import pandas as pd
-
-    from ._store import ResultsStore
-
-    with ResultsStore(store_path) as store:
-        rows = store.rows()
-    recs = []
-    for r in rows:
-        if r.get("tag") != tag or r.get("noise_on") != noise_on:
-            continue
-        ex = r.get("extra") or {}
-        recs.append({
-            "system": r["system"], "method": r["method"], "snr_db": float(r["snr_db"]),
-            "realization": int(r["realization"]), "rmse_f1": r.get("rmse_f1"), "rmse_f2": r.get("rmse_f2"),
-            "status": r["status"], "preset": r["preset"], "variant": r["variant"], "noise_on": r["noise_on"],
-            "eta": r.get("eta") if r.get("eta") is not None else _eta(float(r["snr_db"])),
-            "rmse_x": r.get("rmse_x_mean"), "t_sep": r.get("t_sep_mean"), "n_cases": r.get("n_cases"),
-            "n_failed_cases": r.get("n_failed_cases"), "n_censored": r.get("n_censored"),
-            "seconds": r.get("seconds"), "fit_seconds": ex.get("fit_seconds"), "gain": r.get("gain"),
-            "loss": r.get("loss"), "error": r.get("error"), "mixed_terms": _mixed_terms(ex),
-            "_finished": r.get("finished_at") or "",
-            "_model_path": _model_path(ex.get("model_path"), store_path),
-        })
-    df = pd.DataFrame(recs, columns=list(RESULT_COLUMNS) + ["_finished", "_model_path"])
-    if len(df):
-        df = df.sort_values("_finished").drop_duplicates(
-            ["system", "method", "snr_db", "realization", "preset"], keep="last")
-        order = {m: i for i, m in enumerate(_all_methods())}
-        df = df.assign(_o=df["method"].map(lambda m: order.get(m, 99))).sort_values(
-            ["system", "preset", "_o", "snr_db", "realization"], ascending=[True, True, True, False, True])
-        df = df.drop(columns="_o").reset_index(drop=True)
-    for c in ("snr_db", "eta", "rmse_f1", "rmse_f2", "rmse_x", "t_sep", "seconds", "fit_seconds", "gain", "loss",
-              "mixed_terms"):
-        df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
-    return df
-
-
-def _mixed_terms(extra: Mapping[str, Any]) -> float:
-    """How many terms mixing the curves' arguments (x and x') the symbolic expression of a job held
-    (SR: its bivariate search; they are dropped and the separable terms refitted); NaN for methods
-    without such an expression and for rows of older stores."""
-    terms = (extra.get("model_info") or {}).get("mixed_terms")
-    return float(len(terms)) if isinstance(terms, list) else float("nan")
-
-
-def _model_path(path: str | None, store_path) -> str | None:
-    """A row's saved model folder: relative to the store's folder (absolute in older stores)."""
-    if not path:
-        return None
-    return os.path.join(os.path.dirname(os.path.abspath(os.fspath(store_path))), path)
-
-
-def _all_methods() -> tuple[str, ...]:
-    from ..fitting import METHODS
-
-    return tuple(METHODS)
 
 
 from ._tables import (  # noqa: E402 - the tables of the report, re-exported (they were defined here)
-    _eta,
     BIAS_LIMITED as BIAS_LIMITED,
     NEURAL as NEURAL,
     NN_X_ETA_MAX as NN_X_ETA_MAX,
@@ -409,41 +349,6 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
     res = BenchmarkResult(out_dir, csv_path, md, page, n_jobs, n_run, n_failed,
                           time.perf_counter() - t_start, timing)
     return res
-
-
-def _sr_budget(methods: Sequence[str], generations: int | None) -> dict[str, dict]:
-    """``method_options`` giving the symbolic-regression methods a smaller budget (quick grid):
-    20 Operon generations instead of 40 recover the same benchmark curves about twice as fast."""
-    if generations is None:
-        return {}
-    return {m: {"sr_options": {"generations": int(generations)}} for m in methods
-            if m in ("sr", "sr-cc", "sr-cc+refit") or m.endswith("post-sr")}
-
-
-@dataclasses.dataclass
-class _Context:
-    out_dir: str
-    systems: tuple
-    methods: tuple
-    preset: str
-    sizes: dict
-    t_end: float
-    n_points: int
-    base_seed: int
-    full: bool
-    executor: str
-    workers: int | None
-    progress: bool
-    skip: tuple
-    sweep: Any
-    address: str | None = None
-
-
-def _write_csv(df, path: str) -> None:
-    cols = [c for c in RESULT_COLUMNS if c in df.columns]
-    tmp = f"{path}.tmp{os.getpid()}"
-    df[cols].to_csv(tmp, index=False)
-    os.replace(tmp, path)
 
 
 from ._report_inputs import build_report as build_report  # noqa: E402 - re-exported (it was defined here)

@@ -28,6 +28,15 @@ class SweepInterrupted(KeyboardInterrupt):
 
     A ``KeyboardInterrupt``, so code that stops on Ctrl-C keeps doing so; ``str()`` is the one
     line to show. Attributes: ``n_finished`` (rows stored by this run), ``n_todo``, ``store_path``.
+
+    Examples
+    --------
+    >>> from charcurves.experiments import SweepInterrupted
+    >>> stop = SweepInterrupted(3, 10, "results.sqlite")
+    >>> isinstance(stop, KeyboardInterrupt), stop.n_finished, stop.n_todo
+    (True, 3, 10)
+    >>> print(stop)
+    sweep interrupted (SIGINT): 3 of 10 jobs finished and stored in results.sqlite; rerun the same command to resume
     """
 
     def __init__(self, n_finished: int, n_todo: int, store_path: str, signal_name: str = "SIGINT"):

@@ -1,9 +1,10 @@
 """The paper's published numbers, for the benchmark report to put beside ours.
 
-Every value cites where it comes from: ``paper`` is ``/work/shared/paper/characteristic-curves-paper.tex``
+Every value cites where it comes from: ``paper`` is the paper, ``characteristic-curves-paper.tex``
 (Gonzalez, *Integrating prior knowledge in equation discovery...*), ``protocol`` is
-``/work/shared/paper/reference-protocol.md`` (numbers recomputed from the authors' stored result
-files). A values are in absolute units (the paper prints them x 1e-2). Method names are the
+``reference-protocol.md`` (numbers recomputed from the authors' stored result files); both are in
+the project's shared folder beside the repository (``../shared/paper/`` from its root). A values
+are in absolute units (the paper prints them x 1e-2). Method names are the
 library's (:data:`charcurves.METHODS`).
 """
 

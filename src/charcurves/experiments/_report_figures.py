@@ -123,7 +123,7 @@ def _value(extras, key: str):
 
 # ---------------------------------------------------------------------- Fig. 6
 def forward_panels(rep, df, extras) -> None:
-    from ..report._study import plot_forward
+    from ..report import plot_forward
     from ..systems import BenchmarkSystem, get_system
 
     rep.heading("Forward integrations, training and new initial conditions (Fig. 6)")
@@ -161,7 +161,7 @@ def forward_panels(rep, df, extras) -> None:
 
 # ---------------------------------------------------------------------- Fig. 7
 def phase_space(rep, df, run, extras) -> None:
-    from ..report._study import plot_phase_space
+    from ..report import plot_phase_space
     from ..systems import get_system
     from ._validation import training_box
 

@@ -25,6 +25,8 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from .._errors import ConfigError
+from ._results import committed_csv as committed_csv
+from ._results import read_results_csv as read_results_csv
 
 __all__ = ["RUN_FILE", "COMMITTED_FILES", "write_run_file", "read_results_csv", "committed_csv", "load_report_inputs", "build_report",
            "write_report"]
@@ -47,7 +49,7 @@ def write_run_file(out_dir: str, run: Mapping[str, Any]) -> str:
     ``"previous"``, oldest first, each with what it ran and its stage times, so that the report
     can show every invocation's cost and not only the last one's.
     """
-    from ..io._csv import atomic_write_bytes
+    from ..io import atomic_write_bytes
     from ._store import _jsonable
 
     path = os.path.join(out_dir, RUN_FILE)
@@ -64,74 +66,6 @@ def write_run_file(out_dir: str, run: Mapping[str, Any]) -> str:
         record["previous"] = earlier
     atomic_write_bytes(path, json.dumps(_jsonable(record), indent=1, sort_keys=True).encode("utf-8"))
     return path
-
-
-#: Columns every release's results CSV has (the newer ones are filled in when missing).
-_REQUIRED = ("system", "method", "snr_db", "realization", "rmse_f1", "rmse_f2", "status")
-
-
-def read_results_csv(path: str | os.PathLike):
-    """``results.csv`` (or ``appendix_f.csv``, either gzipped as ``.csv.gz``) as the DataFrame the
-    report's tables take.
-
-    Examples
-    --------
-    >>> import pandas as pd, tempfile, os
-    >>> d = tempfile.mkdtemp(); p = os.path.join(d, "results.csv")
-    >>> pd.DataFrame({"system": ["duffing"], "method": ["sr"], "snr_db": [float("inf")], "realization": [0],
-    ...               "rmse_f1": [1e-3], "rmse_f2": [2e-3], "status": ["ok"]}).to_csv(p, index=False)
-    >>> df = read_results_csv(p)
-    >>> float(df["snr_db"][0]), df["preset"][0], float(df["eta"][0])
-    (inf, 'default', 0.0)
-
-    A file that is not such a CSV (truncated, another table) is a ConfigError naming it and what is wrong.
-    """
-    import pandas as pd
-
-    from ._benchmark import RESULT_COLUMNS
-    from ._tables import _eta
-
-    try:
-        df = pd.read_csv(path)
-    except (OSError, EOFError, ValueError, UnicodeDecodeError) as exc:  # truncated gzip, not a CSV, ...
-        raise ConfigError(f"cannot rebuild the report: {os.fspath(path)} is not a readable results CSV "
-                          f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'unreadable'}); restore "
-                          "the file from the run or the repository") from None
-    missing = [c for c in _REQUIRED if c not in df.columns]
-    if missing:
-        raise ConfigError(f"cannot rebuild the report: {os.fspath(path)} lacks the column(s) {', '.join(missing)} "
-                          "of a benchmark results CSV; restore the file written by `charcurves benchmark`")
-    for c in RESULT_COLUMNS:
-        if c not in df.columns:  # files of older releases lack the newer columns
-            df[c] = {"preset": "default", "variant": "paper", "noise_on": "force"}.get(c, float("nan"))
-    for c in ("snr_db", "eta", "rmse_f1", "rmse_f2", "rmse_x", "t_sep", "seconds", "fit_seconds", "gain", "loss",
-              "n_cases", "n_failed_cases", "n_censored", "mixed_terms"):
-        df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
-    if df["eta"].isna().any():
-        df["eta"] = [_eta(s) for s in df["snr_db"]]
-    df["realization"] = df["realization"].astype(int)
-    for c in ("system", "method", "status", "preset", "variant", "noise_on"):
-        df[c] = df[c].astype(str)
-    df["error"] = df["error"].where(df["error"].notna(), None)
-    return df[list(RESULT_COLUMNS)]
-
-
-def committed_csv(out_dir: str, name: str) -> str | None:
-    """The path of ``name`` (a ``.csv``) in ``out_dir``, or of its gzipped copy ``name + ".gz"`` when
-    only that is there (a large committed file); None when neither is. The plain file wins: a run
-    into the folder rewrites it from the store.
-
-    >>> import tempfile, gzip, os
-    >>> d = tempfile.mkdtemp(); committed_csv(d, "results.csv") is None
-    True
-    >>> with gzip.open(os.path.join(d, "results.csv.gz"), "wb") as fh: _ = fh.write(b"a\n1\n")
-    >>> os.path.basename(committed_csv(d, "results.csv"))
-    'results.csv.gz'
-    """
-    for path in (os.path.join(out_dir, name), os.path.join(out_dir, name + ".gz")):
-        if os.path.isfile(path):
-            return path
-    return None
 
 
 def _need(out_dir: str, name: str) -> str:
@@ -155,7 +89,7 @@ def load_report_inputs(out_dir: str | os.PathLike) -> tuple[Any, dict, Any, Any]
     """
 
     from ._appendix_f import protocol_frames
-    from ._benchmark import _Extras
+    from ._run_files import _Extras
 
     out_dir = os.fspath(out_dir)
     if not os.path.isdir(out_dir):
@@ -167,7 +101,7 @@ def load_report_inputs(out_dir: str | os.PathLike) -> tuple[Any, dict, Any, Any]
         raise ConfigError(f"cannot rebuild the report: {os.path.join(out_dir, RUN_FILE)} is not valid JSON ({exc}); "
                           "restore the file or rerun the benchmark") from None
     if run.get("noise_on") == "state":  # Appendix F alone: no main sweep, no results.csv
-        from ._benchmark import empty_results_frame
+        from ._results import empty_results_frame
 
         df = empty_results_frame()
     else:
@@ -204,7 +138,7 @@ def build_report(out_dir: str | os.PathLike, *, timing: Mapping[str, float] | No
 def write_report(out_dir: str | os.PathLike, inputs: tuple, *, timing: Mapping[str, float] | None = None
                  ) -> tuple[str, str]:
     """Write the report from ``inputs``, the tuple :func:`load_report_inputs` read from ``out_dir``."""
-    from ..report._html import Report
+    from ..report import Report
     from . import _report_sections as sections
 
     df, run, extras, af = inputs

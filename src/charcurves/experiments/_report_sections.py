@@ -10,9 +10,9 @@ from typing import Any
 import numpy as np
 
 from . import _paper_values as paper
-from ._benchmark import (
+from ._results import METHOD_GROUPS
+from ._tables import (
     BIAS_LIMITED,
-    METHOD_GROUPS,
     NN_X_ETA_MAX,
     a_fit_table,
     cost_table,
@@ -293,7 +293,7 @@ def _table3(rep, df, fits) -> None:
 
 # ---------------------------------------------------------------------- Figs. 5 / 11
 def _rmse_figures(rep, df, fits) -> None:
-    from ..report._study import plot_rmse_vs_noise
+    from ..report import plot_rmse_vs_noise
 
     rep.heading("RMSE of the curves vs noise (Figs. 5 and 11)")
     if not len(df):
@@ -329,7 +329,7 @@ def _rmse_figures(rep, df, fits) -> None:
 
 # ---------------------------------------------------------------------- Fig. 8
 def _tsep(rep, df, extras) -> None:
-    from ..report._study import plot_tsep_vs_noise
+    from ..report import plot_tsep_vs_noise
 
     rep.heading("Separation time vs noise with the Lyapunov time (Fig. 8)")
     ly = _lyap(extras)
@@ -373,7 +373,7 @@ def _tsep(rep, df, extras) -> None:
 
 # ---------------------------------------------------------------------- Figs. 9 / 13
 def _performance(rep, df, fits) -> None:
-    from ..report._study import plot_performance
+    from ..report import plot_performance
 
     rep.heading("Performance relative to Parametric (Figs. 9 and 13)")
     perf = performance_table(fits) if fits else {}

@@ -1,10 +1,11 @@
-"""The benchmark's small run objects: its result summary, ``extras.json`` and the progress line."""
+"""The benchmark's small run objects: its result summary, ``extras.json``, the progress line, the
+settings of a run that its sections share and the symbolic-regression budget of the quick grid."""
 
 from __future__ import annotations
 
 import dataclasses
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 __all__ = ["BenchmarkResult"]
@@ -77,3 +78,31 @@ def _log(progress: bool, msg: str) -> None:
         import sys
 
         print(f"[charcurves benchmark] {msg}", file=sys.stderr, flush=True)
+
+
+def _sr_budget(methods: Sequence[str], generations: int | None) -> dict[str, dict]:
+    """``method_options`` giving the symbolic-regression methods a smaller budget (quick grid):
+    20 Operon generations instead of 40 recover the same benchmark curves about twice as fast."""
+    if generations is None:
+        return {}
+    return {m: {"sr_options": {"generations": int(generations)}} for m in methods
+            if m in ("sr", "sr-cc", "sr-cc+refit") or m.endswith("post-sr")}
+
+
+@dataclasses.dataclass
+class _Context:
+    out_dir: str
+    systems: tuple
+    methods: tuple
+    preset: str
+    sizes: dict
+    t_end: float
+    n_points: int
+    base_seed: int
+    full: bool
+    executor: str
+    workers: int | None
+    progress: bool
+    skip: tuple
+    sweep: Any
+    address: str | None = None

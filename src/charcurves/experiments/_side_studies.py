@@ -7,7 +7,8 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from ._benchmark import MIW_METHODS, _Context, _Extras, _log
+from ._results import MIW_METHODS
+from ._run_files import _Context, _Extras, _log
 
 __all__ = ["lyapunov", "miw_study", "sensitivity", "SENSITIVITY_VARIATIONS", "SENSITIVITY_FULL_EXTRA"]
 

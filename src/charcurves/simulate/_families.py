@@ -17,6 +17,7 @@ import numpy as np
 
 from .._errors import ConfigError, SimulationError
 from .._lambdify import numpy_function
+from ._result import SimulationResult
 
 __all__ = ["simulate_template_model", "SimulationStopped"]
 
@@ -104,8 +105,6 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
     """
     import sympy as sp
     from scipy.integrate import solve_ivp
-
-    from ._forward import SimulationResult
 
     template = model.template
     t_eval = np.asarray(t_eval, dtype=float).reshape(-1)

@@ -26,6 +26,7 @@ import numpy as np
 
 from .._errors import ConfigError
 from ._curve_eval import PreparedCurve, prepare_curve
+from ._families import simulate_template_model
 from ._result import STATUSES, SimulationResult, _Stop, sinusoidal_forcing, solver_class
 
 __all__ = ["SimulationResult", "simulate_model", "sinusoidal_forcing", "prepare_model_curves", "STATUSES",
@@ -422,7 +423,6 @@ def simulate_model(model, t_eval, x0: float, v0: float, forcing: Callable[[float
     ('ok', True)
     """
     if getattr(getattr(model, "template", None), "is_general", False):  # first-order, position-damping, two-dof...
-        from ._families import simulate_template_model
         return simulate_template_model(model, t_eval, x0, v0, forcing, method=method, rtol=rtol, atol=atol,
                                        time_budget=time_budget, max_abs=max_abs)
     t_eval = np.asarray(t_eval, dtype=float).reshape(-1)

@@ -14,12 +14,13 @@ from __future__ import annotations
 from typing import Any
 
 from .._errors import ConfigError
-from ._base import MAX_SIMULATE_POINTS, MAX_SIMULATE_SPAN, BenchmarkSystem
+from ._base import MAX_SIMULATE_POINTS, MAX_SIMULATE_SPAN, BenchmarkSystem, sample_times
 from ._duffing import Duffing
 from ._stick_slip import StickSlip
 
 __all__ = ["BenchmarkSystem", "Duffing", "StickSlip", "VanDerPolDamping", "FirstOrderSystem", "TwoDOF",
-           "corrupt_forces", "get_system", "SYSTEM_NAMES", "MAX_SIMULATE_POINTS", "MAX_SIMULATE_SPAN"]
+           "corrupt_forces", "get_system", "SYSTEM_NAMES", "MAX_SIMULATE_POINTS", "MAX_SIMULATE_SPAN",
+           "sample_times"]
 
 from ._families import FirstOrderSystem, TwoDOF, VanDerPolDamping, corrupt_forces  # noqa: E402
 

@@ -32,7 +32,18 @@ _SCIPY_DEFAULT = (1e-3, 1e-6)
 
 def sample_times(t_end: Any = None, n_points: Any = None, t_eval: Any = None) -> np.ndarray:
     """The sample times of a simulation: ``linspace(0, t_end, n_points)`` or ``t_eval``, checked
-    against :data:`MAX_SIMULATE_POINTS` and :data:`MAX_SIMULATE_SPAN` (ConfigError naming the fix)."""
+    against :data:`MAX_SIMULATE_POINTS` and :data:`MAX_SIMULATE_SPAN` (ConfigError naming the fix).
+
+    Examples
+    --------
+    >>> from charcurves.systems import sample_times
+    >>> sample_times(10.0, 5).tolist()
+    [0.0, 2.5, 5.0, 7.5, 10.0]
+    >>> sample_times(10.0, 1)
+    Traceback (most recent call last):
+    ...
+    charcurves._errors.ConfigError: n_points must be an integer >= 2, got 1
+    """
     if t_eval is None:
         t_end = _real("t_end", t_end, positive=True)
         if isinstance(n_points, bool) or not isinstance(n_points, numbers.Integral) or n_points < 2:

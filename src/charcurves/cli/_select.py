@@ -16,9 +16,9 @@ def run_select(a, *, say, check_out, fit=None) -> int:
     """Run the family search for the parsed command line ``a``; 0 whether or not a family is accepted."""
     from ..data import Trajectory
     from ..templates import get_template, read_record
-    from ..io._csv import atomic_write_bytes
+    from ..io import atomic_write_bytes
     from ..fitting import MIN_MEMBERS
-    from ._family import select_family
+    from ..selection import select_family
 
     families = [f.strip() for f in a.families.split(",") if f.strip()]
     if not families:
