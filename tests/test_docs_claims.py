@@ -49,7 +49,7 @@ def test_the_committed_sr_cc_is_the_refit_equal_to_parametric_in_525_of_610_jobs
     srcc = df[df["method"] == "sr-cc"].set_index(key)[["rmse_f1", "rmse_f2"]].reindex(par.index)
     equal = int((np.abs(srcc - par) < 1e-6).all(axis=1).sum())
     assert (len(par), equal) == (610, 525)
-    for page in ("benchmark.md", "deviations.md"):
+    for page in ("benchmark.md", "deviations-symbolic.md"):
         text = _page(page)
         assert "525 of" in text and "610" in text, page
 
@@ -309,11 +309,12 @@ def test_appendix_f_is_what_the_docs_say():
 
 
 def test_deviations_states_the_default_preset_as_the_code_has_it():
-    """Item 10 of deviations.md names the default preset's network and budgets: read them from the preset."""
+    """Item 10 of the deviations (deviations-training.md) names the default preset's network and budgets: read them
+    from the preset."""
     from charcurves.fitting import PRESETS
 
     p = PRESETS["default"]
-    text = _section(_page("deviations.md"), "### 10. Default training", "### 11.")
+    text = _section(_page("deviations-training.md"), "## 10. Default training", "## 11.")
     hidden = ",".join(str(h) for h in p.hidden)
     assert f"a ({hidden},) {p.activation} MLP" in text
     assert f"{p.adam_steps} Adam steps (lr 1e{round(np.log10(p.adam_lr))})" in text
@@ -407,12 +408,13 @@ def test_the_typed_figures_of_the_benchmark_page_are_the_committed_ones():
 
 @pytest.mark.skipif(not STUDY.exists(), reason="the committed full study is not in this checkout")
 def test_deviations_21_and_22_quote_the_committed_full_study():
-    """Items 21 (SR-CC's own coefficients against the refit) and 22 (SR's mixed terms) of docs/deviations.md."""
+    """Items 21 (SR-CC's own coefficients against the refit) and 22 (SR's mixed terms) of the deviations
+    (docs/deviations-symbolic.md)."""
     df = pd.read_csv(STUDY)
     duff = df[(df["system"] == "duffing") & (df["preset"] == "default")]
     a_sr, a_refit = _a(duff, "sr-cc"), _a(duff, "sr-cc+refit")
     assert 0.01 < max(abs(r / s - 1) for s, r in zip(a_sr, a_refit)) < 0.02
-    text = _page("deviations.md")
+    text = _page("deviations-symbolic.md")
     assert "A of `sr-cc` and `sr-cc+refit` differ by under 2 %" in text
     sr = df[(df["method"] == "sr") & (df["status"] == "ok")]
     mixed = {s: (int((g["mixed_terms"] > 0).sum()), len(g)) for s, g in sr.groupby("system")}

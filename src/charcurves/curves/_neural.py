@@ -34,7 +34,7 @@ __all__ = ["NeuralCurve", "SYMMETRIES", "jump_log_eps", "EVEN_INPUT_WEIGHTS"]
 SYMMETRIES = ("none", "odd", "even")
 
 #: Range of |input weight| that the first layer of exact even curves starts from (inputs are
-#: scaled to |u| <= 1). Measured on the Van der Pol-type record (docs/deviations.md): from
+#: scaled to |u| <= 1). Measured on the Van der Pol-type record (docs/deviations-training.md): from
 #: [1, 3] some seeds still stall (2-3 % error), [2, 4] to [3, 6] all reach the unconstrained fit.
 EVEN_INPUT_WEIGHTS = (2.0, 4.0)
 
