@@ -83,7 +83,7 @@ class CharacteristicCurves:
     >>> from charcurves.fitting import CharacteristicCurves
     >>> from charcurves.systems import get_system
     >>> traj = corrupt(get_system("duffing").simulate(), 20, seed=0)
-    >>> model = CharacteristicCurves(method="parametric").fit(traj).model_
+    >>> model = CharacteristicCurves(method="parametric", basis="f1=z; f2=z, z**3").fit(traj).model_
     >>> round(model.curves["f1"].components().get("linear_slope", 0.3), 1)
     0.3
     """

@@ -63,7 +63,7 @@ def raw_fit(est, records, seeds=None):
     >>> from charcurves.fitting import CharacteristicCurves, raw_fit
     >>> from charcurves.systems import get_system
     >>> measured = corrupt(get_system("duffing").simulate(), 30, on="state", seed=0)
-    >>> [model], [prepared] = raw_fit(CharacteristicCurves(method="parametric"), [measured])
+    >>> [model], [prepared] = raw_fit(CharacteristicCurves(method="parametric", basis="f1=z; f2=z, z**3"), [measured])
     >>> measured.has_derivatives, prepared.has_derivatives, "output_error" in model.info
     (False, True, False)
     """
