@@ -139,7 +139,8 @@ def fit_with_post_sr(plain, distilled, records, seeds=None) -> tuple[list, list]
     if check:
         raise ConfigError(f"fit_with_post_sr needs two estimators that differ only in post-SR: {check}")
     records = list(records)
-    if any(isinstance(e.symmetry, str) and e.symmetry.strip().lower() == "auto" for e in (plain, distilled)):
+    if any(e.tests_priors() or (isinstance(e.symmetry, str) and e.symmetry.strip().lower() == "auto")
+           for e in (plain, distilled)):
         return plain.fit_many(records, seeds), distilled.fit_many(records, seeds)  # parities detected per fit
     ctx = _fit_stage(plain, records, seeds)
     refined = _refine(plain, ctx, records)
@@ -147,8 +148,14 @@ def fit_with_post_sr(plain, distilled, records, seeds=None) -> tuple[list, list]
     copies = [copy.copy(m) for m in models]
     for m in copies:  # post-SR builds new models; the plain ones get their own info to finish
         m.info = copy.deepcopy(m.info)
-    return (_finish(plain, ctx, records, refined),
-            _finish(distilled, dict(ctx, method=distilled.resolve()[3]), records, (copies, stop)))
+    out = (_finish(plain, ctx, records, refined),
+           _finish(distilled, dict(ctx, method=distilled.resolve()[3]), records, (copies, stop)))
+    from ._symmetry import priors_record
+
+    for est, fitted in zip((plain, distilled), out):
+        for m in fitted:
+            m.info["priors"] = priors_record(est, m)
+    return out
 
 
 def _post_sr_pair(plain, distilled) -> str:
