@@ -90,7 +90,9 @@ def _fit_stage(est, records: list, seeds):
         estimated.append(e)
     if seeds is None:
         seeds = [est.random_state + i for i in range(len(prepared))]
-    exclude = bool(est.exclude_sticking) and bool(options.get("exclude_sticking", True))
+    # --jump none says the record has no dry friction: then no sample is left out as sticking either
+    exclude = bool(est.exclude_sticking) and bool(options.get("exclude_sticking", True)) and \
+        not (isinstance(est.jump, str) and est.jump.strip().lower() in ("none", ""))
     masks = sticking_masks(prepared, structure, estimated, exclude=exclude, kind=kind,
                            stick_tol=options.get("stick_tol", "default"))
     jumps = resolve_jumps(reps, prepared, structure, estimated, preset) if kind == "gradient" else \
