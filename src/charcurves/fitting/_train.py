@@ -190,8 +190,18 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
         # Marquardt scaling with a floor so directions the data do not see stay damped
         scale = diag + 1e-9 * diag.max(dim=1, keepdim=True).values + 1e-12
         A = JtJ + (mu.unsqueeze(-1) * scale).unsqueeze(-1) * eye
+        g_step = g
+        if jumps:
+            # a jump height at its bound 0 whose gradient points below it stays there (active set):
+            # the step solves for the other parameters only, so the linear model stays consistent
+            held = torch.zeros_like(g, dtype=torch.bool)
+            held[:, jumps] = (theta[:, jumps] <= 0) & (g[:, jumps] > 0)
+            if bool(held.any()):
+                keep = (~held).to(A.dtype)
+                A = A * keep.unsqueeze(-1) * keep.unsqueeze(-2) + torch.diag_embed(held.to(A.dtype))
+                g_step = g * keep
         L, info = torch.linalg.cholesky_ex(A)
-        step = -torch.cholesky_solve(g.unsqueeze(-1), L).squeeze(-1)
+        step = -torch.cholesky_solve(g_step.unsqueeze(-1), L).squeeze(-1)
         ok_solve = info == 0
         step = torch.where(ok_solve.unsqueeze(-1) & active.unsqueeze(-1), step, torch.zeros_like(step))
         trial = theta + step
@@ -201,7 +211,7 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
         cost_before = cost
         rel = torch.where(accept, (cost - cost_new) / cost.clamp_min(1e-300), torch.zeros_like(cost))
         # the decrease the linear model predicts: -(2 g.s + s'JtJ s) = -g.s + mu s'Ds for the LM step
-        predicted = -(g * step).sum(1) + mu * (scale * step * step).sum(1)
+        predicted = -(g_step * step).sum(1) + mu * (scale * step * step).sum(1)
         # converged (MINPACK's ftol test) where neither the trial nor the linear model gains more
         # than tol: a refused step (otherwise the damping would grow to its cap over some 30 refused
         # steps that all leave theta as it is) or, with a window (output error), an accepted one
