@@ -90,9 +90,21 @@ TIME = [
         est_kw={"derivatives": "given"}),
 ]
 
+#: parametric has no default basis: its rows give the Duffing basis explicitly
+_BASIS = "f1=z; f2=z, z**3"
+
+
+def _method(m: str) -> tuple:
+    return ("--method", m, "--basis", _BASIS) if m == "parametric" else ("--method", m)
+
+
+def _method_kw(m: str) -> dict:
+    return {"method": m, "basis": _BASIS} if m == "parametric" else {"method": m}
+
+
 SHORT = [
-    Bad(f"too-few-samples-{m}", "short20", ("--method", m), (f"method {m} needs at least 30 samples", "has 20",
-                                                             "longer record"), est_kw={"method": m})
+    Bad(f"too-few-samples-{m}", "short20", _method(m), (f"method {m} needs at least 30 samples", "has 20",
+                                                        "longer record"), est_kw=_method_kw(m))
     for m in ("nn-cc+sym", "nn-cc", "poly-cc", "sindy-cc", "sr", "parametric")
 ] + [
     Bad("one-sample", "one_row", (), ("at least 2 samples", "got 1", "longer record")),
@@ -103,9 +115,9 @@ SHORT = [
 ]
 
 IDENTIFIABILITY = [
-    Bad(f"constant-x-{m}", "const_x", ("--method", m),
+    Bad(f"constant-x-{m}", "const_x", _method(m),
         ("no excitation", "x' of f1 is constant", "cannot be identified", "excite it"),
-        IdentifiabilityError, est_kw={"method": m})
+        IdentifiabilityError, est_kw=_method_kw(m))
     for m in ("nn-cc+sym", "nn-cc", "poly-cc", "parametric", "sindy-cc", "sr")
 ] + [
     Bad("constant-x-estimated-derivatives", "const_x_txf", (), ("no excitation", "cannot be identified"),
@@ -116,9 +128,9 @@ IDENTIFIABILITY = [
         IdentifiabilityError, est_kw={"free_gain": True}),
     Bad("constant-force-sindy", "const_F", ("--method", "sindy"), ("forcing f is constant", "not identifiable"),
         IdentifiabilityError, est_kw={"method": "sindy"}),
-    Bad("constant-force-parametric-free-gain", "const_F", ("--method", "parametric", "--free-gain"),
+    Bad("constant-force-parametric-free-gain", "const_F", (*_method("parametric"), "--free-gain"),
         ("forcing f is constant", "not identifiable"), IdentifiabilityError,
-        est_kw={"method": "parametric", "free_gain": True}),
+        est_kw={**_method_kw("parametric"), "free_gain": True}),
     Bad("one-sided-velocity-odd-f1", "one_sided_v", ("--sym", "f1=odd"),
         ("an odd prior on f1", "both sides of 0", "neither checked nor used", "use --method nn-cc"),
         IdentifiabilityError, est_kw={"symmetry": "f1=odd"}),
@@ -165,6 +177,12 @@ NAMES = [
     Bad("basis-exponent-bomb", "base", ("--method", "parametric", "--basis", "f1=9**9**9*z; f2=z"),
         ("'9**9**9*z' nests a power in an exponent", "plain closed form"), ConfigError,
         est_kw={"method": "parametric", "basis": "f1=9**9**9*z; f2=z"}),
+    Bad("parametric-without-basis", "base", ("--method", "parametric"),
+        ("method 'parametric' needs a basis per curve", 'basis="f1=z, z**3; f2=z, z**3"',
+         '--basis "f1=z, z**3; f2=z, z**3"', "DEFAULT_BASIS"), ConfigError, est_kw={"method": "parametric"}),
+    Bad("parametric-empty-basis", "base", ("--method", "parametric", "--basis", " "),
+        ("method 'parametric' needs a basis per curve", "--basis"), ConfigError,
+        est_kw={"method": "parametric", "basis": " "}),
     Bad("basis-without-equals", "base", ("--method", "parametric", "--basis", "z, z**3"),
         ("has no '='", "f1=z; f2=z, z**3"), ConfigError, est_kw={"method": "parametric", "basis": "z, z**3"}),
     Bad("unknown-truth-system", "base", ("--truth", "pendulum"), ("unknown system 'pendulum'", "duffing"),
@@ -304,9 +322,9 @@ _NO_EXCITATION = ("no excitation", "cannot be identified", "excite the system")
 _CONST_FORCE = ("forcing f is constant", "gain g cannot be told apart", "not identifiable", "drop --free-gain")
 _PD, _FO = ("--family", "position-damping"), ("--family", "first-order")
 FAMILIES = [
-    Bad(f"position-damping-constant-x-{m}", "const_x", (*_PD, "--method", m),
+    Bad(f"position-damping-constant-x-{m}", "const_x", (*_PD, *_method(m)),
         ("argument x of f1 is constant", *_NO_EXCITATION), IdentifiabilityError,
-        est_kw={"family": "position-damping", "method": m})
+        est_kw={"family": "position-damping", **_method_kw(m)})
     for m in ("nn-cc", "poly-cc", "parametric", "sindy-cc")
 ] + [
     Bad(f"first-order-constant-x-{m}", "const_x", (*_FO, "--method", m),
@@ -320,8 +338,9 @@ FAMILIES = [
         IdentifiabilityError, est_kw={"family": "position-damping", "free_gain": True}),
     Bad("position-damping-constant-force-sindy", "const_F", (*_PD, "--method", "sindy"), _CONST_FORCE[:3],
         IdentifiabilityError, est_kw={"family": "position-damping", "method": "sindy"}),
-    Bad("first-order-constant-force-free-gain", "const_F", (*_FO, "--method", "parametric", "--free-gain"),
-        _CONST_FORCE, IdentifiabilityError, est_kw={"family": "first-order", "method": "parametric", "free_gain": True}),
+    Bad("first-order-constant-force-free-gain", "const_F", (*_FO, *_method("parametric"), "--free-gain"),
+        _CONST_FORCE, IdentifiabilityError, est_kw={"family": "first-order", **_method_kw("parametric"),
+                                                    "free_gain": True}),
     Bad("position-damping-one-sided-odd-f1", "positive_x", (*_PD, "--method", "poly-cc", "--sym", "f1=odd"),
         ("an odd prior on f1", "argument x on both sides of 0", "neither checked nor used", "leave out --sym",
          "crosses 0"), IdentifiabilityError, est_kw={"family": "position-damping", "method": "poly-cc",

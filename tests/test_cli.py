@@ -93,7 +93,7 @@ def test_fit_column_mapping_rows_and_sample_rate(tmp_path):
     path.write_text("\n".join(lines) + "\n")
     out = tmp_path / "o"
     code = run(["fit", path, "--x-col", "V2", "--force-col", "V1", "--sample-rate", fs, "--rows", "100:2900",
-                "--method", "parametric", "--free-gain", "--derivatives", "spectral", "--out", out, "--no-figure"])
+                "--method", "parametric", "--basis", "f1=z; f2=z, z**3", "--free-gain", "--derivatives", "spectral", "--out", out, "--no-figure"])
     assert code == 0
     res = json.loads((out / "result.json").read_text())
     # in file time x_tt + c^2 f1(x_t / c) + c^2 f2(x) = c^2 F: the gain is c^2 and f2 scales by c^2
@@ -198,8 +198,9 @@ def duffing_csv(tmp_path_factory):
 @pytest.mark.parametrize("method", ALL_METHODS)
 def test_every_method_runs_through_the_cli(tmp_path, duffing_csv, method):
     out = tmp_path / "o"
+    basis = ["--basis", "f1=z; f2=z, z**3"] if method == "parametric" else []
     code = run(["fit", duffing_csv, "--method", method, "--out", out, "--no-figure", "--quiet",
-                "--sr-generations", "20", "--truth", "duffing"])
+                "--sr-generations", "20", "--truth", "duffing", *basis])
     assert code == 0
     res = json.loads((out / "result.json").read_text())
     assert res["method"] == method

@@ -39,7 +39,8 @@ def first_runs(csv, tmp_path_factory):
 
 
 def _fit(csv, out, method, *extra) -> bytes:
-    assert main(["fit", str(csv), "--method", method, "--out", str(out), *FAST, *extra]) == 0
+    basis = ("--basis", "f1=z; f2=z, z**3") if method == "parametric" else ()
+    assert main(["fit", str(csv), "--method", method, "--out", str(out), *FAST, *basis, *extra]) == 0
     return (out / "result.json").read_bytes()
 
 

@@ -13,7 +13,7 @@ from charcurves import ConfigError, DataError, IdentifiabilityError
 from charcurves.cli import main
 from charcurves.data import corrupt
 from charcurves.data._trajectory import MultiTrajectory
-from charcurves.fitting import PRESETS, CharacteristicCurves, load_model
+from charcurves.fitting import DEFAULT_GENERAL_BASIS, PRESETS, CharacteristicCurves, load_model
 from charcurves.simulate import simulate_model
 from charcurves.systems import corrupt_forces, get_system
 
@@ -46,6 +46,8 @@ def two_dof():
 
 
 def _fit(system, record, method, **kw):
+    if method == "parametric":  # no default basis: a cubic per curve, given explicitly
+        kw.setdefault("basis", DEFAULT_GENERAL_BASIS)
     return CharacteristicCurves(family=system.family, method=method, random_state=0, threads=1, **kw).fit(record).model_
 
 
@@ -214,7 +216,7 @@ def test_post_sr_distils_position_damping_curves(vdp):
 
 def test_multi_dof_record_checks(two_dof):
     s, clean, _ = two_dof
-    cc = CharacteristicCurves(family="two-dof", method="parametric")
+    cc = CharacteristicCurves(family="two-dof", method="parametric", basis=DEFAULT_GENERAL_BASIS)
     with pytest.raises(DataError, match="multi-DOF record"):
         cc.fit(get_system("duffing").simulate())
     together = clean.replace(states={"x1": clean.states["x1"], "x2": clean.states["x1"]},
@@ -236,6 +238,7 @@ def test_cli_two_dof_and_equation(tmp_path, capsys):
     assert csv.read_text().splitlines()[0] == "t,x1,x2,v1,a1,v2,a2,F1,F2"
     out = tmp_path / "fit"
     assert main(["fit", str(csv), "--family", "two-dof", "--method", "parametric", "--out", str(out),
+                 "--basis", "; ".join(f"f{k}=1, z, z**2, z**3" for k in range(1, 5)),
                  "--truth", "two-dof", "--no-figure", "--quiet"]) == 0
     res = json.loads((out / "result.json").read_text())
     assert res["family"] == "two-dof" and res["gauge"] == "f2(0) = 0, f4(0) = 0"
@@ -277,11 +280,13 @@ def test_cli_two_dof_and_equation(tmp_path, capsys):
 
 def test_first_order_uses_given_velocity_alone(first_order):
     s, clean, _ = first_order
-    model = CharacteristicCurves(family="first-order", method="parametric", derivatives="given").fit(
+    model = CharacteristicCurves(family="first-order", method="parametric", derivatives="given",
+                                 basis=DEFAULT_GENERAL_BASIS).fit(
         clean.replace(a=None)).model_  # x' is all a first-order template needs
     z = np.linspace(-1.2, 1.2, 50)
     np.testing.assert_allclose(model.curves["f1"](z), s.f1(z), atol=1e-9)
     np.testing.assert_allclose(model.curves["f2"](z), s.f2(z), atol=1e-9)
     with pytest.raises(DataError, match="--derivatives given needs"):
-        CharacteristicCurves(family="position-damping", method="parametric", derivatives="given").fit(
+        CharacteristicCurves(family="position-damping", method="parametric", derivatives="given",
+                             basis=DEFAULT_GENERAL_BASIS).fit(
             clean.replace(a=None))

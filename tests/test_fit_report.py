@@ -84,7 +84,7 @@ def fitted(tmp_path_factory, duffing_20db):
     csv = root / "duffing.csv"
     duffing_20db.to_csv(str(csv))
     out = root / "fit"
-    rc = main(["fit", str(csv), "--method", "parametric", "--out", str(out), "--report", "--truth", "duffing",
+    rc = main(["fit", str(csv), "--method", "parametric", "--basis", "f1=z; f2=z, z**3", "--out", str(out), "--report", "--truth", "duffing",
                "--quiet"])
     assert rc == 0
     return out, json.loads((out / "result.json").read_text())
@@ -164,7 +164,7 @@ def test_report_shows_the_output_error_free_runs_of_a_record_without_derivatives
     traj = cc.corrupt(system.simulate(t_end=24.0, n_points=600), 30.0, on="state", seed=0)
     lines = ["t,x,F"] + [f"{float(t)!r},{float(x)!r},{float(f)!r}" for t, x, f in zip(traj.t, traj.x, traj.F)]
     (tmp_path / "x.csv").write_text("\n".join(lines) + "\n")
-    assert main(["fit", str(tmp_path / "x.csv"), "--method", "parametric", "--out", str(tmp_path / "o"),
+    assert main(["fit", str(tmp_path / "x.csv"), "--method", "parametric", "--basis", "f1=z; f2=z, z**3", "--out", str(tmp_path / "o"),
                  "--report", "--quiet"]) == 0
     oe = cc.load_model(tmp_path / "o" / "model").info["output_error"]
     assert oe["free_run_rmse_after"] < oe["free_run_rmse_before"]
@@ -182,7 +182,7 @@ def test_report_draws_the_bands_stored_in_result_json(tmp_path, duffing_20db):
     from charcurves.report import load_fit
 
     duffing_20db.to_csv(str(tmp_path / "d.csv"))
-    assert main(["fit", str(tmp_path / "d.csv"), "--method", "parametric", "--bands", "3", "--out",
+    assert main(["fit", str(tmp_path / "d.csv"), "--method", "parametric", "--basis", "f1=z; f2=z, z**3", "--bands", "3", "--out",
                  str(tmp_path / "o"), "--report", "--quiet"]) == 0
     model, result = load_fit(tmp_path / "o")
     assert set(model.bands) == {"f1", "f2"}

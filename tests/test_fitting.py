@@ -10,6 +10,7 @@ from charcurves import ConfigError, DataError, ModelFileError
 from charcurves.data import corrupt
 from charcurves.fitting import PRESETS, CharacteristicCurves, load_model
 from charcurves.metrics import curve_errors, curve_rmse
+from charcurves.systems import get_system
 
 
 def test_parametric_recovers_duffing_coefficients_exactly_on_clean_data(duffing):
@@ -31,7 +32,7 @@ def test_parametric_recovers_duffing_coefficients_exactly_on_clean_data(duffing)
 
 def test_parametric_at_20db_is_at_the_statistical_limit(duffing):
     system, clean = duffing
-    errs = np.array([list(curve_errors(cc.fit(corrupt(clean, 20, seed=s), method="parametric"),
+    errs = np.array([list(curve_errors(cc.fit(corrupt(clean, 20, seed=s), method="parametric", basis="f1=z; f2=z, z**3"),
                                        system.true_curves()).values()) for s in range(5)])
     mean = errs.mean(axis=0)
     # the paper's Table 2 implies ~1.1e-3 / 1.6e-3; the issue asks <= 2e-3
@@ -82,7 +83,7 @@ def test_free_gain_recovers_a_scaled_forcing(duffing):
     e_known = curve_errors(known, system.true_curves())
     for k in ("f1", "f2"):
         assert e_free[k] < 1.5 * e_known[k] + 1e-3, (e_free, e_known)
-    par = cc.fit(scaled, method="parametric", free_gain=True)
+    par = cc.fit(scaled, method="parametric", basis="f1=z; f2=z, z**3", free_gain=True)
     assert par.gain == pytest.approx(2.5, rel=0.01)
 
 
@@ -265,7 +266,7 @@ def test_save_load_round_trip_gives_identical_predictions(tmp_path, duffing_20db
     assert back.gain == model.gain and back.offset == model.offset and back.method == model.method
     doc = json.loads((tmp_path / "m" / "model.json").read_text())
     assert doc["format_version"] == 1 and doc["curves"][0]["network"]["jump"] is True
-    par = cc.fit(duffing_20db, method="parametric")
+    par = cc.fit(duffing_20db, method="parametric", basis="f1=z; f2=z, z**3")
     par.save(tmp_path / "p")
     back = load_model(tmp_path / "p")
     assert np.array_equal(par.curves["f2"](z), back.curves["f2"](z))
@@ -273,7 +274,7 @@ def test_save_load_round_trip_gives_identical_predictions(tmp_path, duffing_20db
 
 
 def test_damaged_model_files_are_refused(tmp_path, duffing_20db):
-    model = cc.fit(duffing_20db, method="parametric")
+    model = cc.fit(duffing_20db, method="parametric", basis="f1=z; f2=z, z**3")
     model.save(tmp_path / "m")
     blob = (tmp_path / "m" / "arrays.safetensors").read_bytes()
     (tmp_path / "m" / "arrays.safetensors").write_bytes(blob[:-3] + b"xyz")
@@ -333,7 +334,7 @@ def test_data_errors_name_the_fix(duffing_20db):
 def test_estimated_derivatives_path_runs(duffing):
     system, clean = duffing
     noisy_x = corrupt(clean, 40, on="state", seed=0)
-    model = cc.fit(noisy_x, method="parametric", derivatives="savgol")
+    model = cc.fit(noisy_x, method="parametric", basis="f1=z; f2=z, z**3", derivatives="savgol")
     errs = curve_errors(model, system.true_curves())
     assert errs["f1"] < 0.05 and errs["f2"] < 0.08, errs
 
@@ -354,7 +355,7 @@ def test_estimator_follows_the_sklearn_contract():
     est = CharacteristicCurves(method="nn-cc", random_state=3)
     params = est.get_params()
     assert params["method"] == "nn-cc" and params["random_state"] == 3
-    est.set_params(method="parametric")
+    est.set_params(method="parametric", basis="f1=z; f2=z, z**3")
     assert est.method == "parametric"
     with pytest.raises(ConfigError, match="unknown parameter"):
         est.set_params(colour="red")
@@ -371,7 +372,8 @@ def test_duffing_20db_five_seed_means(duffing, method, limits):
     system, clean = duffing
     errs = []
     for seed in range(5):
-        model = cc.fit(corrupt(clean, 20, seed=seed), method=method, random_state=seed, threads=1)
+        basis = {"basis": "f1=z; f2=z, z**3"} if method == "parametric" else {}
+        model = cc.fit(corrupt(clean, 20, seed=seed), method=method, random_state=seed, threads=1, **basis)
         errs.append([curve_errors(model, system.true_curves())[k] for k in ("f1", "f2")])
     mean = np.mean(errs, axis=0)
     assert mean[0] <= limits[0] and mean[1] <= limits[1], mean
@@ -380,3 +382,88 @@ def test_duffing_20db_five_seed_means(duffing, method, limits):
 def test_explicit_no_symmetry_with_a_sym_method_is_refused(duffing_20db):
     with pytest.raises(ConfigError, match="imposes a parity prior .* use 'nn-cc' for no prior"):
         cc.fit(duffing_20db, method="nn-cc+sym", symmetry="f1=none,f2=none")
+
+
+# ---------------------------------------------------------------------- sticking only where the mass sticks
+def _smooth_record(f1, f2, *, A, omega, t_end=40.0, n=1000):
+    from scipy.integrate import solve_ivp
+
+    from charcurves.data import Trajectory
+
+    def rhs(t, y):
+        return [y[1], A * np.cos(omega * t) - f1(np.array([y[1]]))[0] - f2(np.array([y[0]]))[0]]
+
+    t = np.linspace(0, t_end, n)
+    x, v = solve_ivp(rhs, (0, t_end), [0.5, -0.5], t_eval=t, rtol=1e-10, atol=1e-12, method="LSODA").y
+    F = A * np.cos(omega * t)
+    return Trajectory(t=t, x=x, F=F, v=v, a=F - f1(v) - f2(x))
+
+
+_SMOOTH = {
+    "duffing": lambda: get_system("duffing").simulate(),
+    "pendulum": lambda: _smooth_record(lambda v: 0.1 * v, lambda x: 3 * np.sin(x), A=1.0, omega=1.2, t_end=60.0,
+                                       n=3000),
+    "pendulum-slow": lambda: _smooth_record(lambda v: 0.05 * v, lambda x: 2 * np.sin(x), A=0.8, omega=0.9,
+                                            t_end=60.0, n=3000),
+    "drag": lambda: _smooth_record(lambda v: 0.2 * v + 0.15 * v * np.abs(v), lambda x: 1.5 * np.tanh(2 * x), A=1.0,
+                                   omega=1.0),
+    "asymmetric": lambda: _smooth_record(lambda v: 0.3 * v, lambda x: 4 * x + 1.5 * x**2, A=1.0, omega=1.5),
+}
+
+
+@pytest.mark.parametrize("name", list(_SMOOTH))
+def test_smooth_records_have_no_sticking_samples(name):
+    """The former test (|x'| <= 1 % of max over 3 samples), measured on these records with x noise-free
+    or at 40, 30, 20 dB (seeds 0-2): up to 3, 6, 15, 0 and 7 false sticking samples per record on
+    Duffing, the pendulum, the slow pendulum, drag and the asymmetric spring; now 0. Not yet 0: Duffing
+    sampled 3000 times over 60 s at 20 dB on x (76 samples for seed 0), Duffing's scripts variant at
+    30 dB (6)."""
+    from charcurves.data import estimate_derivatives
+    from charcurves.templates import ESTIMATED_STICK_TOL, sticking_mask
+
+    clean = _SMOOTH[name]()
+    assert not sticking_mask(clean).any() and not sticking_mask(corrupt(clean, 25, seed=0)).any()
+    for snr in (None, 40.0, 30.0):
+        for seed in (0, 1):
+            noisy = clean if snr is None else corrupt(clean, snr, on="state", seed=seed)
+            record = estimate_derivatives(noisy.replace(v=None, a=None), "auto")
+            assert int(sticking_mask(record, rel_tol=ESTIMATED_STICK_TOL).sum()) == 0, (name, snr, seed)
+
+
+def test_true_sticking_is_still_found_with_estimated_derivatives():
+    """Stick-slip: 372 sticking samples of 1000. Measured, derivatives estimated from x with 40 / 30 dB
+    noise (seed 0): found 350 / 348 (the former 1 % test: 211 / 117), and 35 / 32 samples beside the
+    sticks (within 10 samples of one: the differentiator's smoothing; former 8 / 4)."""
+    from charcurves.data import estimate_derivatives
+    from charcurves.templates import ESTIMATED_STICK_TOL, sticking_mask
+
+    system = get_system("stick-slip")
+    clean = system.simulate()
+    truth = system.sticking_mask(clean)
+    assert np.array_equal(sticking_mask(clean), truth) and int(truth.sum()) == 372
+    near = np.convolve(truth, np.ones(21), mode="same") > 0  # within 10 samples of a stick
+    for snr, found in ((40.0, 350), (30.0, 348)):
+        record = estimate_derivatives(corrupt(clean, snr, on="state", seed=0).replace(v=None, a=None), "auto")
+        mask = sticking_mask(record, rel_tol=ESTIMATED_STICK_TOL)
+        assert int((mask & truth).sum()) == found
+        assert not (mask & ~near).any()
+
+
+def test_jump_none_leaves_no_sample_out_as_sticking():
+    record = get_system("stick-slip").simulate()
+    est = CharacteristicCurves(method="poly-cc", threads=1)
+    assert est.fit(record).model_.info["n_sticking_samples"] == 372
+    assert CharacteristicCurves(method="poly-cc", jump="none", threads=1).fit(record).model_.info[
+        "n_sticking_samples"] == 0
+
+
+def test_a_learned_jump_is_never_negative():
+    """A jump forced onto Duffing's damping (no friction; 20 s, 500 samples, 25 dB on F) ends at
+    2.2e-17, before the bound at -1.14e-3 (friction that feeds energy in). Measured on the full
+    record: +1.9e-4 (before -2.6e-4); on drag 0.2v + 0.15v|v| with a tanh spring +0.089 (before
+    -0.590); stick-slip's jump unchanged (0.8109 at 20 dB, true mu N 0.801; see the stick-slip
+    tests above)."""
+    record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 25, seed=0)
+    model = CharacteristicCurves(method="nn-cc+sym", jump="f1", threads=1).fit(record).model_
+    height = model.curves["f1"].components()["jump_height"]
+    assert 0.0 <= height < 1e-6

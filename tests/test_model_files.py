@@ -38,7 +38,7 @@ def saved(tmp_path_factory, record):
     root = tmp_path_factory.mktemp("models")
     neural = cc.CharacteristicCurves(method="nn-cc+sym", threads=1).fit(record).model_
     neural.save(root / "neural")
-    parametric = cc.fit(record, method="parametric", threads=1)
+    parametric = cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3", threads=1)
     parametric.save(root / "parametric")
     return root
 
@@ -214,7 +214,7 @@ def test_loading_never_runs_code_or_hangs(saved, tmp_path, kind, text):
 
 
 def test_symbolic_models_round_trip(tmp_path, record):
-    base = cc.fit(record, method="parametric", threads=1)
+    base = cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3", threads=1)
     curves = {n: SymbolicFittedCurve(n, c.argument, c.domain, str(c.expression())) for n, c in base.curves.items()}
     model = FittedModel(base.template, "sr-cc", curves, base.gain, base.offset, base.loss, {"x_seconds": 1.5})
     model.save(tmp_path / "s")

@@ -221,9 +221,9 @@ def test_refinement_options_are_checked(duffing_record):
     traj, _ = duffing_record
     model = symbolic_model("0.4*z", "z", 1.0)
     with pytest.raises(ConfigError, match="unknown refine option 'segments'; valid: hold, substeps"):
-        cc.fit(traj, method="parametric", free_gain=True, refine="output-error", refine_options={"segments": 3})
+        cc.fit(traj, method="parametric", basis="f1=z; f2=z, z**3", free_gain=True, refine="output-error", refine_options={"segments": 3})
     with pytest.raises(ConfigError, match="unknown refine 'simulation'; choose one of none, output-error, auto"):
-        cc.fit(traj, method="parametric", refine="simulation")
+        cc.fit(traj, method="parametric", basis="f1=z; f2=z, z**3", refine="simulation")
     with pytest.raises(ConfigError, match="segment_length must be an integer >= 16"):
         refine_output_error(model, traj, segment_length=4)
     uneven = Trajectory(t=np.r_[np.arange(100) * DT, 100 * DT + 0.3 + np.arange(100) * DT], x=np.zeros(200),
@@ -289,7 +289,7 @@ def test_cli_refines_by_default_for_free_gain_closed_forms(tmp_path, duffing_csv
     assert (tmp_path / "val" / "validation.png").stat().st_size > 10000
     # --refine none keeps the equation-error fit
     proc = cli(["fit", duffing_csv, "--x-col", "y", "--force-col", "u", "--sample-rate", 1 / DT, "--method",
-                 "parametric", "--free-gain", "--refine", "none", "--out", tmp_path / "none", "--no-figure"])
+                 "parametric", "--basis", "f1=z; f2=z, z**3", "--free-gain", "--refine", "none", "--out", tmp_path / "none", "--no-figure"])
     assert proc.returncode == 0, proc.stderr
     assert "output_error" not in json.loads((tmp_path / "none" / "result.json").read_text())["info"]
 
@@ -303,7 +303,7 @@ def test_cli_refines_by_default_for_free_gain_closed_forms(tmp_path, duffing_csv
 ])
 def test_cli_bad_refine_values(tmp_path, duffing_csv, extra, message, cli):
     args = ["fit", duffing_csv, "--x-col", "y", "--force-col", "u", "--sample-rate", 1 / DT, "--free-gain",
-            "--method", "parametric", "--out", tmp_path / "o", "--no-figure", *extra]
+            "--method", "parametric", "--basis", "f1=z; f2=z, z**3", "--out", tmp_path / "o", "--no-figure", *extra]
     proc = cli(args)
     assert proc.returncode == 2
     assert proc.stderr.strip() == message

@@ -12,7 +12,7 @@ from charcurves.report import plot_curves  # noqa: E402
 
 def test_curve_figure_shades_the_training_range_and_overlays_the_truth(duffing, duffing_20db):
     system, _ = duffing
-    model = cc.fit(duffing_20db, method="parametric")
+    model = cc.fit(duffing_20db, method="parametric", basis="f1=z; f2=z, z**3")
     fig = plot_curves(model, system.true_curves())
     axes = fig.axes
     assert len(axes) == 2
@@ -38,7 +38,7 @@ def test_curve_figure_shades_the_training_range_and_overlays_the_truth(duffing, 
 def test_curve_figure_draws_into_given_axes(duffing_20db):
     import matplotlib.pyplot as plt
 
-    model = cc.fit(duffing_20db, method="parametric")
+    model = cc.fit(duffing_20db, method="parametric", basis="f1=z; f2=z, z**3")
     fig, axes = plt.subplots(1, 2)
     out = plot_curves(model, axes=axes, label="mine")
     assert out is fig

@@ -8,7 +8,7 @@ import sympy as sp
 
 from charcurves.curves import Symbolic
 from charcurves.data import corrupt
-from charcurves.fitting import METHODS, CharacteristicCurves
+from charcurves.fitting import DEFAULT_BASIS, METHODS, CharacteristicCurves
 from charcurves.metrics import curve_errors
 from charcurves.systems import get_system
 
@@ -21,7 +21,8 @@ def fits():
     record = corrupt(system.simulate(), 0.0, seed=3)  # 0 dB: the coefficients of the searches carry the noise
     out = {}
     for method in ("sr-cc", "sr-cc+refit", "parametric"):
-        model = CharacteristicCurves(method=method, sr_options={"generations": 20}, threads=1).fit(record).model_
+        basis = {"basis": DEFAULT_BASIS} if method == "parametric" else {}
+        model = CharacteristicCurves(method=method, sr_options={"generations": 20}, threads=1, **basis).fit(record).model_
         out[method] = (model, curve_errors(model, system.true_curves()))
     return out
 

@@ -66,6 +66,8 @@ def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_g
 
         check_band_options(bands, bands_level)  # before the fit: a bad option must not cost a long run
     model = est.fit(traj).model_
+    say(f"charcurves: priors: {model.info['priors']['summary']}"
+        + ("; tests in result.json under 'symmetry'" if "symmetry_auto" in model.info else ""), quiet)
     if bands is not None and not model.info.get("interrupted"):
         from ..fitting import fit_ensembles, resolved_estimator
         from ..selection import attach_bands, curve_bands
@@ -78,10 +80,6 @@ def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_g
             model.info["bands"] = "skipped: interrupted"
         else:
             attach_bands(model, curve_bands(ens, level=bands_level))
-    if "symmetry_auto" in model.info:
-        auto = model.info["symmetry_auto"]
-        say(f"--sym auto: imposed {', '.join(f'{k}={v}' for k, v in auto['applied'].items())} "
-            f"(method {auto['method']}; tests in result.json under 'symmetry')", quiet)
     elapsed = time.perf_counter() - t0
     with signals_deferred() as late_interrupt:
         make_out_dir(out_dir)

@@ -59,9 +59,12 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     f.add_argument("--equation", default=None,
                    help="your own template instead of a family, e.g. \"x'' + a1*x' + f1(x) = F\" "
                         "(several equations separated by ';')")
-    f.add_argument("--method", default="nn-cc+sym", help=f"one of: {', '.join(METHODS)}")
+    f.add_argument("--method", default=None,
+                   help=f"one of: {', '.join(METHODS)} (default: nn-cc with the parity priors the record supports, "
+                        "tested first; nn-cc+sym with --sym)")
     f.add_argument("--sym", default=None, help="parity priors, e.g. f1=odd,f2=odd; auto: test the parity of "
-                                               "unconstrained curves and impose what the data support")
+                                               "unconstrained curves and impose what the data support "
+                                               "(default: tested by fast poly-cc fits when --method is not given)")
     f.add_argument("--free-gain", action="store_true", help="learn the input gain g")
     f.add_argument("--gauge", default=None,
                    help="curve(s) anchored at 0, e.g. f1 (default: the family's, separable f2, two-dof f2,f4)")

@@ -87,8 +87,9 @@ def dataset_seed(purpose: str, system: str, variant: str, noise_on: str | None, 
 
 
 def default_fit_options(system, method: str) -> dict[str, Any]:
-    """Method settings a system needs by default: stick-slip Parametric gets the true basis
-    (``f1 = z, sign(z)`` for Coulomb friction, ``tanh(500 z)`` for the tanh law of the scripts).
+    """Method settings a system needs by default: Parametric gets the system's true basis (the
+    paper's Duffing basis ``f1 = z; f2 = z, z**3``; stick-slip ``f1 = z, sign(z)`` for Coulomb
+    friction, ``tanh(500 z)`` for the tanh law of the scripts).
 
     Examples
     --------
@@ -100,6 +101,8 @@ def default_fit_options(system, method: str) -> dict[str, Any]:
         if getattr(system, "friction", "coulomb") == "coulomb":
             return {"basis": "f1=z, sign(z); f2=z"}
         return {"basis": f"f1=z, tanh({float(system.tanh_scale):g}*z); f2=z"}
+    if method == "parametric" and getattr(system, "name", "") == "duffing":
+        return {"basis": "f1=z; f2=z, z**3"}
     return {}
 
 

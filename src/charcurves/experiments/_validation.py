@@ -272,7 +272,7 @@ class CaseResult:
     >>> from charcurves.experiments import CaseResult, evaluate_forward, make_validation_cases
     >>> from charcurves.systems import get_system
     >>> system = get_system("duffing")
-    >>> model = cc.fit(system.simulate(), method="parametric")
+    >>> model = cc.fit(system.simulate(), method="parametric", basis="f1=z; f2=z, z**3")
     >>> cases = make_validation_cases(system, 1, seed=0, t_end=10.0, n_points=201)
     >>> case = evaluate_forward(model, system, cases).cases[0]
     >>> isinstance(case, CaseResult), case.status, case.censored, case.rmse_x < 1e-3
@@ -307,7 +307,7 @@ class ForwardEvaluation:
     >>> from charcurves.experiments import ForwardEvaluation, evaluate_forward, make_validation_cases
     >>> from charcurves.systems import get_system
     >>> system = get_system("duffing")
-    >>> model = cc.fit(system.simulate(), method="parametric")
+    >>> model = cc.fit(system.simulate(), method="parametric", basis="f1=z; f2=z, z**3")
     >>> result = evaluate_forward(model, system, make_validation_cases(system, 2, seed=0, t_end=10.0, n_points=201))
     >>> isinstance(result, ForwardEvaluation), sorted(result.summary())
     (True, ['eps', 'n_cases', 'n_censored', 'n_failed_cases', 'rmse_x_mean', 'statuses', 't_sep_mean'])
@@ -399,7 +399,7 @@ def evaluate_forward(model, system, cases, *, eps: float = 0.2, box_margin: floa
     >>> from charcurves.experiments import evaluate_forward, make_validation_cases
     >>> from charcurves.systems import get_system
     >>> system = get_system("duffing")
-    >>> model = cc.fit(system.simulate(), method="parametric")
+    >>> model = cc.fit(system.simulate(), method="parametric", basis="f1=z; f2=z, z**3")
     >>> result = evaluate_forward(model, system, make_validation_cases(system, 2, seed=0, t_end=10.0, n_points=201))
     >>> result.n_cases, result.n_failed, result.n_censored
     (2, 0, 2)

@@ -28,6 +28,7 @@ from ._harmonics import HARMONIC_F_THRESHOLD as HARMONIC_F_THRESHOLD
 from ._harmonics import harmonic_test as harmonic_test
 from ._linear_fit import l0_weight as l0_weight
 from ._methods import DEFAULT_BASIS as DEFAULT_BASIS
+from ._methods import DEFAULT_GENERAL_BASIS as DEFAULT_GENERAL_BASIS
 from ._methods import METHODS as METHODS
 from ._methods import parse_basis_option as parse_basis_option
 from ._methods import parse_symmetry as parse_symmetry

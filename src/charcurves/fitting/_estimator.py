@@ -40,7 +40,11 @@ class CharacteristicCurves:
         unset take the ``method`` preset's representation (``Neural()`` without a method). None:
         the template of ``family``/``equation`` with the method's curves.
     method : str, optional
-        One of :data:`METHODS`; default "nn-cc+sym" when no template is given.
+        One of :data:`METHODS`. Default, without a template: NN-CC whose parity priors are those
+        the record supports -- each curve's parity is tested first (poly-cc fits of a bootstrap
+        ensemble, :func:`~charcurves.fitting.detect_symmetry`, about 0.1 s) and odd/even imposed
+        only where one parity fits and the other does not (``info["priors"]`` says what and why);
+        with ``symmetry`` given, "nn-cc+sym" with those parities.
     differentiator : str or Differentiator, optional
         How derivatives the template needs are obtained: "auto" (default: the record's own
         derivative columns when present, else estimated), "given", a name ("spectral", "savgol",
@@ -83,7 +87,7 @@ class CharacteristicCurves:
     >>> from charcurves.fitting import CharacteristicCurves
     >>> from charcurves.systems import get_system
     >>> traj = corrupt(get_system("duffing").simulate(), 20, seed=0)
-    >>> model = CharacteristicCurves(method="parametric").fit(traj).model_
+    >>> model = CharacteristicCurves(method="parametric", basis="f1=z; f2=z, z**3").fit(traj).model_
     >>> round(model.curves["f1"].components().get("linear_slope", 0.3), 1)
     0.3
     """
@@ -166,20 +170,38 @@ class CharacteristicCurves:
         from ._train import torch_threads
 
         self.check()  # the thread count among the rest, before it is used
+        from ._symmetry import fit_many_auto, name_prior_in_warnings, priors_record
+
         with torch_threads(self.threads):
-            if isinstance(self.symmetry, str) and self.symmetry.strip().lower() == "auto":
-                from ._symmetry import fit_many_auto  # detect parities, then fit with them
+            if self.tests_priors():  # nothing asked: test the parities, impose what the record supports
+                models = fit_many_auto(self, trajectories, seeds, default=True)
+            elif isinstance(self.symmetry, str) and self.symmetry.strip().lower() == "auto":
+                models = fit_many_auto(self, trajectories, seeds)  # detect parities, then fit with them
+            else:
+                from ._pipeline import run_pipeline
 
-                return fit_many_auto(self, trajectories, seeds)
-            from ._pipeline import run_pipeline
-
-            return run_pipeline(self, list(trajectories), seeds)
+                models = run_pipeline(self, list(trajectories), seeds)
+        for m in models:
+            m.info["priors"] = priors_record(self, m)
+            name_prior_in_warnings(m)
+        return models
 
     # ------------------------------------------------------------------ resolution (used by the pipeline)
+    def tests_priors(self) -> bool:
+        """Whether no method, template or symmetry was asked: then :meth:`fit_many` tests each
+        curve's parity (poly-cc, about 0.1 s) and imposes only what the record supports."""
+        return self.method is None and self.template is None and self.symmetry in (None, "", {})
+
     def method_name(self) -> str:
+        """The method preset: ``method``, else "nn-cc+sym" when a parity is asked (``symmetry``),
+        else "nn-cc" (no prior; :meth:`fit_many` tests the parities first); "custom" for a template."""
         if self.method is not None:
             return self.method
-        return "nn-cc+sym" if self.template is None else "custom"
+        if self.template is not None:
+            return "custom"
+        sym = self.symmetry
+        values = sym.values() if isinstance(sym, dict) else str(sym or "").replace("=", ",").split(",")
+        return "nn-cc+sym" if any(str(v).strip() in ("odd", "even") for v in values) else "nn-cc"
 
     def check(self) -> None:
         """Numbers and names that must be usable before any work starts."""
@@ -356,7 +378,7 @@ class CharacteristicCurves:
         return f"CharacteristicCurves({', '.join(shown)})"
 
 
-def fit(traj, method: str = "nn-cc+sym", **kwargs) -> FittedModel:
+def fit(traj, method: str | None = None, **kwargs) -> FittedModel:
     """Shortcut: ``CharacteristicCurves(method=method, **kwargs).fit(traj).model_``.
 
     Examples

@@ -13,7 +13,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .._errors import ConfigError
-from ..templates import EquationTemplate, sticking_mask
+from ..templates import ESTIMATED_STICK_TOL, EquationTemplate, sticking_mask
 from ._presets import TrainingPreset
 
 __all__ = ["fit_records", "dry_friction_test", "JUMP_F_THRESHOLD", "fitter_kind", "sticking_masks"]
@@ -77,8 +77,9 @@ def sticking_masks(records, template: EquationTemplate, estimated: list[bool], *
                    stick_tol="default") -> list[np.ndarray]:
     """The samples each record fits: sticking phases (x' = 0 over a run) left out for dry friction.
 
-    The |x'| threshold is exact zeros for given derivatives and 1 % of max|x'| for estimated ones;
-    symbolic fits look for exact zeros first and then 1 %, as the paper's SR. Multi-DOF records
+    The |x'| threshold is exact zeros for given derivatives and ESTIMATED_STICK_TOL (5 %) of max|x'|
+    for estimated ones (see :func:`~charcurves.templates.sticking_mask` for the rest of the test);
+    symbolic fits look for exact zeros first and then 5 %. Multi-DOF records
     and templates without a velocity curve keep every sample.
     """
     out = []
@@ -92,9 +93,9 @@ def sticking_masks(records, template: EquationTemplate, estimated: list[bool], *
         elif kind == "symbolic":
             stuck = sticking_mask(rec, rel_tol=None)
             if not stuck.any():
-                stuck = sticking_mask(rec, rel_tol=0.01)
+                stuck = sticking_mask(rec, rel_tol=ESTIMATED_STICK_TOL)
         else:
-            stuck = sticking_mask(rec, rel_tol=0.01 if est else None)
+            stuck = sticking_mask(rec, rel_tol=ESTIMATED_STICK_TOL if est else None)
         out.append(~stuck)
     return out
 
@@ -121,7 +122,7 @@ def resolve_jumps(reps: dict, records, template: EquationTemplate, estimated: li
             if jump is True:
                 layout.append(name)
             elif preset.auto_jump and name in template.velocity_curves and (
-                    sticking_mask(rec, rel_tol=0.01 if est else None).any()
+                    sticking_mask(rec, rel_tol=ESTIMATED_STICK_TOL if est else None).any()
                     or dry_friction_test(rec, template)[0] > JUMP_F_THRESHOLD):
                 layout.append(name)
         powers = []

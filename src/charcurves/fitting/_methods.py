@@ -63,9 +63,10 @@ def shared_fit_base(method: str) -> str | None:
                 None)
 
 
-#: The paper's Parametric basis for Duffing: f1 = a1 x', f2 = a2 x + a3 x^3.
+#: The paper's Parametric basis for Duffing, f1 = a1 x', f2 = a2 x + a3 x^3: pass it as
+#: ``basis=DEFAULT_BASIS`` (parametric has no default basis).
 DEFAULT_BASIS = {"f1": ["z"], "f2": ["z", "z**3"]}
-#: Default Parametric basis of other templates: a cubic polynomial per curve (constants that
+#: A cubic polynomial per curve, to pass as ``basis=DEFAULT_GENERAL_BASIS`` (constants that
 #: curves trade are resolved by the gauge after the fit).
 DEFAULT_GENERAL_BASIS = ["1", "z", "z**2", "z**3"]
 
@@ -115,23 +116,27 @@ def parse_symmetry(sym, curve_names=("f1", "f2")) -> dict[str, str]:
 def parse_basis_option(text, curve_names=("f1", "f2"), *, family: str = "separable") -> dict[str, list[str]]:
     """``"f1=z; f2=z, z**3"`` -> ``{"f1": ["z"], "f2": ["z", "z**3"]}`` (z is the curve's argument).
 
-    None gives the default: the paper's Duffing basis for the separable family, a cubic
-    polynomial per curve for the others.
+    A dict gives each curve's functions, a list the same functions for every curve. There is no
+    default: None is a ConfigError naming ``basis=`` / ``--basis`` (the paper's Duffing basis is
+    :data:`DEFAULT_BASIS`, a cubic per curve :data:`DEFAULT_GENERAL_BASIS`; pass them explicitly).
 
     Examples
     --------
-    >>> from charcurves.fitting import parse_basis_option
+    >>> from charcurves.fitting import DEFAULT_GENERAL_BASIS, parse_basis_option
     >>> parse_basis_option("f1=z; f2=z, z**3")
     {'f1': ['z'], 'f2': ['z', 'z**3']}
-    >>> parse_basis_option(None)
-    {'f1': ['z'], 'f2': ['z', 'z**3']}
+    >>> parse_basis_option(["z", "z**3"])
+    {'f1': ['z', 'z**3'], 'f2': ['z', 'z**3']}
     """
     from ..curves import parse_basis_function
 
-    if text is None:
-        if family == "separable" and tuple(curve_names) == ("f1", "f2"):
-            return {k: list(v) for k, v in DEFAULT_BASIS.items()}
-        return {k: list(DEFAULT_GENERAL_BASIS) for k in curve_names}
+    if text is None or (isinstance(text, str) and not text.strip()):
+        example = "; ".join(f"{n}=z, z**3" for n in curve_names)
+        raise ConfigError(f"method 'parametric' needs a basis per curve: give basis=\"{example}\" (CLI: --basis "
+                          f"\"{example}\"; z is the curve's argument), or basis=DEFAULT_BASIS for the paper's Duffing "
+                          "basis")
+    if isinstance(text, (list, tuple)):
+        text = {n: list(text) for n in curve_names}
     if isinstance(text, dict):
         out = {k: [str(b) for b in (v if isinstance(v, (list, tuple)) else [v])] for k, v in text.items()}
     else:

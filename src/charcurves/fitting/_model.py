@@ -38,7 +38,7 @@ class FittedModel:
     --------
     >>> import charcurves as cc
     >>> from charcurves.systems import get_system
-    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
+    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3")
     >>> isinstance(model, cc.FittedModel), list(model.curves), model.gain
     (True, ['f1', 'f2'], 1.0)
     >>> model.to_sympy(digits=3)
@@ -143,7 +143,7 @@ class FittedModel:
         --------
         >>> import charcurves as cc
         >>> from charcurves.systems import get_system
-        >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
+        >>> model = cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3")
         >>> model.to_sympy(curves=True, digits=4)["f1"]
         0.3*z
         """

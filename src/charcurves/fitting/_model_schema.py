@@ -95,7 +95,7 @@ def validate_model_document(doc, jpath: str = _MODEL_JSON) -> None:
     >>> from charcurves.fitting import validate_model_document
     >>> from charcurves.systems import get_system
     >>> path = os.path.join(tempfile.mkdtemp(), "model")
-    >>> cc.fit(get_system("duffing").simulate(), method="parametric").save(path)
+    >>> cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3").save(path)
     >>> with open(os.path.join(path, "model.json")) as fh:
     ...     doc = json.load(fh)
     >>> validate_model_document(doc)

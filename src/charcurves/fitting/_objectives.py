@@ -60,7 +60,7 @@ class EquationError(_Objective):
     >>> import charcurves as cc
     >>> from charcurves.systems import get_system
     >>> measured = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 30, on="state", seed=0)
-    >>> model = cc.fit(measured, method="parametric", objective=cc.EquationError())
+    >>> model = cc.fit(measured, method="parametric", basis="f1=z; f2=z, z**3", objective=cc.EquationError())
     >>> model.info["settings"]["objective"], model.curves["f2"].coefficients.round(2).tolist()
     ('equation-error', [-1.0, 1.0])
     """
@@ -116,7 +116,7 @@ class OutputError(_Objective):
     >>> from charcurves.systems import get_system
     >>> measured = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 30, on="state", seed=0)
     >>> objective = cc.OutputError(segment_length=16, substeps=1, max_iter=2)  # a short run
-    >>> model = cc.fit(measured, method="parametric", objective=objective)
+    >>> model = cc.fit(measured, method="parametric", basis="f1=z; f2=z, z**3", objective=objective)
     >>> model.info["output_error"]["status"], model.curves["f2"].coefficients.round(2).tolist()
     ('ok', [-1.0, 1.0])
     """

@@ -48,7 +48,7 @@ def summary_lines(model) -> list[str]:
     >>> from charcurves.fitting import summary_lines
     >>> from charcurves.systems import get_system
     >>> record = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 30, on="state", seed=0)
-    >>> model = cc.fit(record, method="parametric", objective=cc.OutputError(segment_length=16, substeps=1, max_iter=2))
+    >>> model = cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3", objective=cc.OutputError(segment_length=16, substeps=1, max_iter=2))
     >>> print(summary_lines(model)[0])
     output-error refinement (hold linear, 1 RK4 step per sample, 33 segments of 16 samples; 2 iterations, status ok):
     """

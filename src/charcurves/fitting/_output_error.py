@@ -111,7 +111,7 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     >>> from charcurves.fitting import CharacteristicCurves, OutputError, get_preset, output_error_fit, raw_fit
     >>> from charcurves.systems import get_system
     >>> measured = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 30, on="state", seed=0)
-    >>> [start], [prepared] = raw_fit(CharacteristicCurves(method="parametric"), [measured])
+    >>> [start], [prepared] = raw_fit(CharacteristicCurves(method="parametric", basis="f1=z; f2=z, z**3"), [measured])
     >>> settings = OutputError(segment_length=16, substeps=1, max_iter=2)  # a short run
     >>> model = output_error_fit(start, prepared, measured, settings, preset=get_preset("default"))
     >>> model.info["output_error"]["status"], model.curves["f2"].coefficients.round(2).tolist()
@@ -352,7 +352,7 @@ def free_run_diagnostics(model, record):
     >>> from charcurves.fitting import free_run_diagnostics
     >>> from charcurves.systems import get_system
     >>> record = cc.corrupt(get_system("duffing").simulate(t_end=10.0, n_points=251), 30, on="state", seed=0)
-    >>> model = cc.fit(record, method="parametric", objective=cc.OutputError(segment_length=16, substeps=1, max_iter=2))
+    >>> model = cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3", objective=cc.OutputError(segment_length=16, substeps=1, max_iter=2))
     >>> t, x, x_free = free_run_diagnostics(model, record)
     >>> t.shape == x.shape == x_free.shape, float(abs(x - x_free).max()) < 0.1
     (True, True)
@@ -457,7 +457,7 @@ def refine_output_error(model, traj, *, hold: str = "linear", substeps: int = 4,
     >>> from charcurves.systems import get_system
     >>> clean = get_system("duffing").simulate(t_end=20.0, n_points=500)
     >>> record = cc.estimate_derivatives(cc.corrupt(clean, 30, on="state", seed=0))
-    >>> start = cc.fit(record, method="parametric")
+    >>> start = cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3")
     >>> model = refine_output_error(start, record, substeps=1, segment_length=32, max_nfev=2)  # a short run
     >>> model.info["output_error"]["status"], model.curves["f2"].coefficients.round(2).tolist()
     ('ok', [-1.0, 1.0])

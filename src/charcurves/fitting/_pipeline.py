@@ -63,7 +63,7 @@ def raw_fit(est, records, seeds=None):
     >>> from charcurves.fitting import CharacteristicCurves, raw_fit
     >>> from charcurves.systems import get_system
     >>> measured = corrupt(get_system("duffing").simulate(), 30, on="state", seed=0)
-    >>> [model], [prepared] = raw_fit(CharacteristicCurves(method="parametric"), [measured])
+    >>> [model], [prepared] = raw_fit(CharacteristicCurves(method="parametric", basis="f1=z; f2=z, z**3"), [measured])
     >>> measured.has_derivatives, prepared.has_derivatives, "output_error" in model.info
     (False, True, False)
     """
@@ -90,7 +90,9 @@ def _fit_stage(est, records: list, seeds):
         estimated.append(e)
     if seeds is None:
         seeds = [est.random_state + i for i in range(len(prepared))]
-    exclude = bool(est.exclude_sticking) and bool(options.get("exclude_sticking", True))
+    # --jump none says the record has no dry friction: then no sample is left out as sticking either
+    exclude = bool(est.exclude_sticking) and bool(options.get("exclude_sticking", True)) and \
+        not (isinstance(est.jump, str) and est.jump.strip().lower() in ("none", ""))
     masks = sticking_masks(prepared, structure, estimated, exclude=exclude, kind=kind,
                            stick_tol=options.get("stick_tol", "default"))
     jumps = resolve_jumps(reps, prepared, structure, estimated, preset) if kind == "gradient" else \
@@ -139,7 +141,8 @@ def fit_with_post_sr(plain, distilled, records, seeds=None) -> tuple[list, list]
     if check:
         raise ConfigError(f"fit_with_post_sr needs two estimators that differ only in post-SR: {check}")
     records = list(records)
-    if any(isinstance(e.symmetry, str) and e.symmetry.strip().lower() == "auto" for e in (plain, distilled)):
+    if any(e.tests_priors() or (isinstance(e.symmetry, str) and e.symmetry.strip().lower() == "auto")
+           for e in (plain, distilled)):
         return plain.fit_many(records, seeds), distilled.fit_many(records, seeds)  # parities detected per fit
     ctx = _fit_stage(plain, records, seeds)
     refined = _refine(plain, ctx, records)
@@ -147,8 +150,14 @@ def fit_with_post_sr(plain, distilled, records, seeds=None) -> tuple[list, list]
     copies = [copy.copy(m) for m in models]
     for m in copies:  # post-SR builds new models; the plain ones get their own info to finish
         m.info = copy.deepcopy(m.info)
-    return (_finish(plain, ctx, records, refined),
-            _finish(distilled, dict(ctx, method=distilled.resolve()[3]), records, (copies, stop)))
+    out = (_finish(plain, ctx, records, refined),
+           _finish(distilled, dict(ctx, method=distilled.resolve()[3]), records, (copies, stop)))
+    from ._symmetry import priors_record
+
+    for est, fitted in zip((plain, distilled), out):
+        for m in fitted:
+            m.info["priors"] = priors_record(est, m)
+    return out
 
 
 def _post_sr_pair(plain, distilled) -> str:

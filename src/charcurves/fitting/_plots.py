@@ -31,7 +31,7 @@ def plot_curves(model, truth: dict[str, Callable] | None = None, *, axes=None, n
     >>> from charcurves.fitting import plot_curves
     >>> from charcurves.systems import get_system
     >>> system = get_system("duffing")
-    >>> model = cc.fit(system.simulate(), method="parametric")
+    >>> model = cc.fit(system.simulate(), method="parametric", basis="f1=z; f2=z, z**3")
     >>> fig = plot_curves(model, system.true_curves())
     >>> [ax.get_xlabel() for ax in fig.axes]
     ["x'", 'x']
@@ -125,7 +125,7 @@ def plot_model(model, ax=None, truth=None, *, bands: dict | None = None, label: 
     >>> import charcurves as cc
     >>> from charcurves.fitting import plot_model
     >>> from charcurves.systems import get_system
-    >>> axes = plot_model(cc.fit(get_system("duffing").simulate(), method="parametric"), truth="duffing")
+    >>> axes = plot_model(cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3"), truth="duffing")
     >>> [ax.get_title() for ax in axes]
     ["f1(x') = 0.3*x'", 'f2(x) = x**3 - x']
     """
@@ -168,7 +168,7 @@ def figure_png(model, truth=None, *, width: float = 3.3, height: float = 2.5, dp
     >>> import charcurves as cc
     >>> from charcurves.fitting import figure_png
     >>> from charcurves.systems import get_system
-    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
+    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3")
     >>> png = figure_png(model, truth="duffing", width=2.0, height=1.5, dpi=40)
     >>> png[1:4], len(png) > 1000  # a PNG file
     (b'PNG', True)

@@ -17,13 +17,15 @@ one side of 0 (nothing to compare).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 
 import numpy as np
 
-from .._errors import ConfigError
+from .._errors import CharCurvesError, ConfigError
 
-__all__ = ["parity_tests", "detect_symmetry", "fit_many_auto", "PARITY_THRESHOLD", "AUTO_MEMBERS"]
+__all__ = ["parity_tests", "detect_symmetry", "fit_many_auto", "priors_record", "PARITY_THRESHOLD", "AUTO_MEMBERS",
+           "DEFAULT_DETECTOR"]
 
 #: RMS of the normalised defect up to which a parity counts as consistent with the data
 PARITY_THRESHOLD = 3.0
@@ -33,6 +35,9 @@ APPROX_TOL = 0.01
 MIN_SYMMETRIC_FRACTION = 0.25
 #: ensemble size of ``symmetry="auto"``
 AUTO_MEMBERS = 8
+#: the detector of the default fit (no method, no symmetry asked): poly-cc curves by equation error,
+#: linear least squares, about 0.1 s per record against 1.6-3 s of the fit itself
+DEFAULT_DETECTOR = "poly-cc"
 
 #: curves whose constant the equation's free constant can absorb, per family (odd up to a shift)
 _SHIFTABLE = {"separable": ("f1", "f2"), "position-damping": ("f2",), "first-order": ("f1",),
@@ -123,7 +128,7 @@ def parity_tests(ensemble, *, threshold: float = PARITY_THRESHOLD, n_grid: int =
 
 
 def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, threshold: float = PARITY_THRESHOLD,
-                    random_state: int = 0, method: str = "nn-cc", **estimator_params) -> dict[str, dict]:
+                    random_state: int = 0, method: str = "nn-cc", objective=None, **estimator_params) -> dict[str, dict]:
     """Fit unconstrained NN-CC curves with a bootstrap ensemble and test their parity.
 
     Parameters
@@ -138,6 +143,9 @@ def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, th
         See :func:`parity_tests`.
     method : str
         An unconstrained method for the curves tested ("nn-cc"; "poly-cc" is faster).
+    objective : optional
+        The objective of the tested fits (default: the estimator's; "equation-error" skips the
+        output-error refit of a measured record).
     **estimator_params
         Settings for a new estimator when none is given (e.g. ``family="separable"``).
 
@@ -158,11 +166,17 @@ def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, th
     """
     from ._ensemble import fit_ensemble
     from ._estimator import CharacteristicCurves
+    from ._methods import METHODS
 
     if estimator is None:
         estimator = CharacteristicCurves(**estimator_params)
     params = estimator.get_params()
-    params.update(method=method, symmetry=None, random_state=int(random_state), progress=None)
+    params.update(method=method, symmetry=None, random_state=int(random_state), progress=None, basis=None,
+                  post_sr=None)
+    if METHODS[method]["representation"] != "neural":  # a jump or a network shape belongs to neural curves
+        params.update(jump="auto", hidden=None, activation=None)
+    if objective is not None:
+        params.update(objective=objective, refine=None, refine_options=None)
     try:
         ensemble = fit_ensemble(CharacteristicCurves(**params), record, n_members, kind="bootstrap")
     except ConfigError as exc:
@@ -193,11 +207,14 @@ def _method_for(method: str, any_parity: bool) -> str:
     return method
 
 
-def fit_many_auto(estimator, trajectories, seeds=None):
+def fit_many_auto(estimator, trajectories, seeds=None, *, default: bool = False):
     """``CharacteristicCurves.fit_many`` with ``symmetry="auto"``: detect, then fit with the priors.
 
     A curve gets a parity only when every record proposes it. The decision and its statistics
-    are stored in each model's ``info["symmetry_auto"]`` (and so in result.json).
+    are stored in each model's ``info["symmetry_auto"]`` (and so in result.json). ``default``: the
+    estimator asked for no method and no prior (``CharacteristicCurves()``, a plain ``charcurves
+    fit``): the parity is tested by :data:`DEFAULT_DETECTOR` by equation error (about 0.1 s), and
+    a record it cannot test (an error of the detector) gets no prior, with the reason.
 
     Examples
     --------
@@ -222,9 +239,17 @@ def fit_many_auto(estimator, trajectories, seeds=None):
         raise ConfigError(f"--sym auto needs a method that takes a symmetry prior (nn-cc, nn-cc+sym, poly-cc, "
                           f"sindy-cc...), not {estimator.method_name()!r}")
     # poly-cc fits test poly-cc curves (fast); every other method tests unconstrained NN-CC curves
-    detector = "poly-cc" if spec["representation"] == "poly" else "nn-cc"
-    tests = [detect_symmetry(tr, estimator=estimator, random_state=int(estimator.random_state), method=detector)
-             for tr in trajectories]
+    detector = "poly-cc" if spec["representation"] == "poly" or default else "nn-cc"
+    try:
+        tests = [detect_symmetry(tr, estimator=estimator, random_state=int(estimator.random_state), method=detector,
+                                 objective="equation-error" if default else None)
+                 for tr in trajectories]
+    except CharCurvesError as exc:
+        if not default:
+            raise
+        # the fit itself names what is wrong with the record, in its own method's words
+        tests = [{name: {"proposal": "none", "reason": f"not tested: {str(exc).splitlines()[0][:200]}"}
+                  for name in estimator.resolve()[1].curve_names}]
     names = list(tests[0])
     applied = {}
     for name in names:
@@ -235,7 +260,7 @@ def fit_many_auto(estimator, trajectories, seeds=None):
     params.update(method=method, symmetry=dict(applied))
     models = CharacteristicCurves(**params).fit_many(trajectories, seeds=seeds)
     report = {
-        "mode": "auto",
+        "mode": "default (no method, no prior asked: tested)" if default else "auto",
         "applied": applied,
         "method": method,
         "requested_method": estimator.method_name(),
@@ -263,8 +288,79 @@ def resolved_estimator(estimator, model):
     CharacteristicCurves(method='poly-cc', symmetry={'f1': 'odd', 'f2': 'odd'})
     """
     report = model.info.get("symmetry_auto") if isinstance(model.info, dict) else None
-    if not (isinstance(estimator.symmetry, str) and estimator.symmetry.strip().lower() == "auto") or not report:
+    auto = isinstance(estimator.symmetry, str) and estimator.symmetry.strip().lower() == "auto"
+    if not (auto or estimator.tests_priors()) or not report:
         return estimator
     params = estimator.get_params()
     params.update(method=report["method"], symmetry=dict(report["applied"]))
     return type(estimator)(**params)
+
+
+_SHORT_REASONS = (("contradict both", "asymmetric"), ("both parities fit", "nearly constant"),
+                  ("one-sided", "one-sided range"), ("not tested", "not tested"))
+
+
+def priors_record(estimator, model) -> dict:
+    """The parity prior imposed on each curve of ``model`` and where it came from, with the line
+    the CLI prints first (``info["priors"]`` in result.json).
+
+    Examples
+    --------
+    >>> from charcurves.data import corrupt
+    >>> from charcurves.fitting import CharacteristicCurves
+    >>> from charcurves.systems import get_system
+    >>> record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
+    >>> estimator = CharacteristicCurves(method="poly-cc", symmetry="f1=odd")
+    >>> estimator.fit(record).model_.info["priors"]["summary"]
+    'f1=odd, f2=none (asked: symmetry f1=odd)'
+    """
+    settings = model.info.get("settings") or {}
+    imposed = {str(k): str(v) for k, v in (settings.get("symmetry") or {}).items()}
+    if not imposed:
+        imposed = {n: getattr(c, "symmetry_name", "none") or "none" for n, c in model.curves.items()}
+    auto = model.info.get("symmetry_auto")
+    notes: dict[str, str] = {}
+    if auto:
+        tests = auto["tests"] if isinstance(auto["tests"], dict) else auto["tests"][0]
+        tag = "tested" if str(auto.get("mode", "")).startswith("default") else "tested, --sym auto"
+        for name in imposed:
+            reason = str((tests.get(name) or {}).get("reason", ""))
+            short = next((s for key, s in _SHORT_REASONS if key in reason), "")
+            notes[name] = tag + (f": {short}" if imposed[name] == "none" and short else "")
+        source = "tested" if tag == "tested" else "--sym auto"
+    elif estimator.template is not None:
+        source = "the template's curves"
+    elif estimator.symmetry not in (None, "", {}):
+        text = estimator.symmetry if isinstance(estimator.symmetry, str) else \
+            ",".join(f"{k}={v}" for k, v in dict(estimator.symmetry).items())
+        source = f"asked: symmetry {text}"
+    elif any(v != "none" for v in imposed.values()):
+        source = f"from method {model.method}"
+    else:
+        source = f"none asked, method {model.method}"
+    if notes and len(set(notes.values())) > 1:
+        summary = ", ".join(f"{n}={v} ({notes[n]})" for n, v in imposed.items())
+    else:
+        note = next(iter(notes.values())) if notes else source
+        summary = ", ".join(f"{n}={v}" for n, v in imposed.items()) + f" ({note})"
+    return {"imposed": imposed, "source": source, "summary": summary}
+
+
+def name_prior_in_warnings(model) -> None:
+    """Put an imposed parity prior first among the likely causes of the self-check's warning."""
+    priors = model.info.get("priors") or {}
+    imposed = {n: v for n, v in (priors.get("imposed") or {}).items() if v != "none"}
+    warnings = model.info.get("warnings")
+    if not imposed or not warnings:
+        return
+    cause = (f"(0) the parity prior imposed ({', '.join(f'{n}={v}' for n, v in imposed.items())}; "
+             f"{priors.get('source', '')}) -- refit without it (--sym none, --method nn-cc) or test it (--sym auto); ")
+    marker = "Likely causes, most likely first: "
+    out = []
+    for w in warnings:
+        if isinstance(w, str) and w.startswith("self-check:"):
+            # a fit inside a fit (symmetry="auto") named the prior already, in its own terms
+            w = re.sub(r"(; also )?\(0\) the parity prior imposed \(.*?\(--sym auto\)(; )?", "", w)
+            w = w.replace(marker, marker + cause, 1) if marker in w else f"{w}; also {cause.rstrip('; ')}"
+        out.append(w)
+    model.info["warnings"] = out

@@ -71,8 +71,44 @@ class BatchedAdam:
         self.param.grad = None
 
 
+def jump_height_columns(problem) -> list[int]:
+    """Columns of ``problem``'s parameters that hold a learned jump's height (neural curves with a
+    jump, in equation-error and output-error problems). Training keeps them >= 0: dry friction
+    takes energy out, a negative height would feed it in.
+
+    Examples
+    --------
+    >>> from charcurves.fitting._train import jump_height_columns
+    >>> class Problem:  # no curve with a jump
+    ...     terms = []
+    >>> jump_height_columns(Problem())
+    []
+    """
+    terms = getattr(problem, "terms", None)
+    if terms is not None:
+        pairs = [(t.curve, o) for t, o in zip(terms, problem.offsets)]
+    else:
+        pairs = [(b.param, o) for b, o in zip(getattr(problem, "blocks", ()), getattr(problem, "block_offsets", ()))]
+    out = []
+    for curve, offset in pairs:
+        sl = curve.slices() if getattr(curve, "jump", False) and hasattr(curve, "slices") else {}
+        if "jump_height" in sl:
+            out.append(offset + sl["jump_height"].start)
+    return out
+
+
+def project_jumps(theta, columns) -> None:
+    """Clamp the jump heights (``columns`` of ``theta``) at 0 in place."""
+    if columns:
+        theta[:, columns] = theta[:, columns].clamp_min(0.0)
+
+
 def _adam(problem, theta, steps, lr, stop_loss, log, progress, holder, check_every=100):
-    theta = theta.clone().requires_grad_(True)
+    jumps = jump_height_columns(problem)
+    theta = theta.clone()
+    with torch.no_grad():
+        project_jumps(theta, jumps)
+    theta.requires_grad_(True)
     opt = BatchedAdam(theta, lr=lr)
     done = torch.zeros(theta.shape[0], dtype=torch.bool, device=theta.device)
     # a model whose loss turns non-finite goes back to its last finite weights and stops there
@@ -111,6 +147,8 @@ def _adam(problem, theta, steps, lr, stop_loss, log, progress, holder, check_eve
                 theta[done] = frozen
         else:
             opt.step()
+        with torch.no_grad():  # projected gradient: a jump's height stays >= 0
+            project_jumps(theta, jumps)
         log.adam_steps = step + 1
     holder["theta"] = theta.detach()
     return theta.detach()
@@ -123,6 +161,10 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
     (the refinement of a long record, see ``_long_record``) instead of the evidence's start; for
     ``window``, ``deadline``, ``nielsen`` and ``evidence_sweeps`` see :func:`train`."""
     K, P = theta.shape
+    jumps = jump_height_columns(problem)
+    if jumps:
+        theta = theta.clone()
+        project_jumps(theta, jumps)
     if problem.bayesian and not keep_decay:
         shape = (K,) if problem.n_decay_groups == 1 else (K, problem.n_decay_groups)
         problem.set_weight_decay(initial_decay(problem, theta, shape))
@@ -148,17 +190,28 @@ def _levenberg_marquardt(problem, theta, max_iter, tol, stop_loss, log, progress
         # Marquardt scaling with a floor so directions the data do not see stay damped
         scale = diag + 1e-9 * diag.max(dim=1, keepdim=True).values + 1e-12
         A = JtJ + (mu.unsqueeze(-1) * scale).unsqueeze(-1) * eye
+        g_step = g
+        if jumps:
+            # a jump height at its bound 0 whose gradient points below it stays there (active set):
+            # the step solves for the other parameters only, so the linear model stays consistent
+            held = torch.zeros_like(g, dtype=torch.bool)
+            held[:, jumps] = (theta[:, jumps] <= 0) & (g[:, jumps] > 0)
+            if bool(held.any()):
+                keep = (~held).to(A.dtype)
+                A = A * keep.unsqueeze(-1) * keep.unsqueeze(-2) + torch.diag_embed(held.to(A.dtype))
+                g_step = g * keep
         L, info = torch.linalg.cholesky_ex(A)
-        step = -torch.cholesky_solve(g.unsqueeze(-1), L).squeeze(-1)
+        step = -torch.cholesky_solve(g_step.unsqueeze(-1), L).squeeze(-1)
         ok_solve = info == 0
         step = torch.where(ok_solve.unsqueeze(-1) & active.unsqueeze(-1), step, torch.zeros_like(step))
         trial = theta + step
+        project_jumps(trial, jumps)  # a jump's height stays >= 0 (the step is projected)
         cost_new = problem.loss(trial)
         accept = active & ok_solve & torch.isfinite(cost_new) & (cost_new < cost)
         cost_before = cost
         rel = torch.where(accept, (cost - cost_new) / cost.clamp_min(1e-300), torch.zeros_like(cost))
         # the decrease the linear model predicts: -(2 g.s + s'JtJ s) = -g.s + mu s'Ds for the LM step
-        predicted = -(g * step).sum(1) + mu * (scale * step * step).sum(1)
+        predicted = -(g_step * step).sum(1) + mu * (scale * step * step).sum(1)
         # converged (MINPACK's ftol test) where neither the trial nor the linear model gains more
         # than tol: a refused step (otherwise the damping would grow to its cap over some 30 refused
         # steps that all leave theta as it is) or, with a window (output error), an accepted one

@@ -110,7 +110,7 @@ def equation_text(model, *, digits: int = DISPLAY_DIGITS) -> str | None:
     >>> import charcurves as cc
     >>> from charcurves.fitting import equation_text
     >>> from charcurves.systems import get_system
-    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
+    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3")
     >>> equation_text(model)
     "x'' + 0.3*x' + (x**3 - x) = F"
     """
@@ -148,7 +148,7 @@ def curve_scale(model) -> float:
     >>> import charcurves as cc
     >>> from charcurves.fitting import curve_scale
     >>> from charcurves.systems import get_system
-    >>> round(curve_scale(cc.fit(get_system("duffing").simulate(), method="parametric")), 2)
+    >>> round(curve_scale(cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3")), 2)
     1.87
     """
     peaks = [0.0]
@@ -192,7 +192,7 @@ def curve_lines(model, *, digits: int = DISPLAY_DIGITS) -> list[str]:
     >>> import charcurves as cc
     >>> from charcurves.fitting import curve_lines
     >>> from charcurves.systems import get_system
-    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
+    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3")
     >>> curve_lines(model)[0]
     "f1(x') = 0.3*x' on [-0.9304, 0.9809]"
     """
@@ -223,7 +223,7 @@ def fit_statistics(model) -> list[tuple[str, str]]:
     >>> import charcurves as cc
     >>> from charcurves.fitting import fit_statistics
     >>> from charcurves.systems import get_system
-    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
+    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3")
     >>> dict(fit_statistics(model))["gain g"]
     '1 (fixed)'
     """
@@ -286,7 +286,7 @@ def output_error_rows(model) -> list[tuple[str, str]]:
     >>> from charcurves.fitting import output_error_rows
     >>> from charcurves.systems import get_system
     >>> record = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 30, on="state", seed=0)
-    >>> model = cc.fit(record, method="parametric", objective=cc.OutputError(segment_length=16, substeps=1, max_iter=2))
+    >>> model = cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3", objective=cc.OutputError(segment_length=16, substeps=1, max_iter=2))
     >>> output_error_rows(model)[:2]
     [('status', 'ok'), ('free runs', 'hold linear, 1 RK4 step per sample, 33 segments of 16 samples, 2 iterations')]
     """
@@ -317,7 +317,7 @@ def model_html(model, *, figure: bool = True, truth=None) -> str:
     >>> import charcurves as cc
     >>> from charcurves.fitting import model_html
     >>> from charcurves.systems import get_system
-    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
+    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3")
     >>> "f1(x&#x27;) = 0.3*x&#x27;" in model_html(model, figure=False)
     True
     """

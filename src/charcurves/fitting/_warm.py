@@ -9,7 +9,7 @@ import numpy as np
 import torch
 
 from ._long_record import is_long, train_long_record
-from ._train import merge_logs, model_chunk, torch_threads, train_with_preset
+from ._train import jump_height_columns, merge_logs, model_chunk, torch_threads, train_with_preset
 
 if TYPE_CHECKING:
     from ._presets import TrainingPreset
@@ -167,7 +167,25 @@ def warm_start(problem, theta0):
             target = torch.cat([target, target.new_zeros(target.shape[0], len(guarded))], dim=1)
         # gelsd, not the default gelsy: torch hands gelsy an uninitialised column-pivot array (jpvt),
         # which LAPACK reads on entry, so its answer followed leftover heap contents (issue 25)
-        sol = torch.linalg.lstsq(A, target.unsqueeze(-1), driver="gelsd" if A.device.type == "cpu" else "gels"
-                                 ).solution.squeeze(-1)
+        driver = "gelsd" if A.device.type == "cpu" else "gels"
+        sol = torch.linalg.lstsq(A, target.unsqueeze(-1), driver=driver).solution.squeeze(-1)
+        # a jump's height is >= 0 (friction takes energy out): where least squares wants it negative,
+        # the constrained optimum holds it at 0 (the active set of this convex problem); refit the
+        # other parts without its column
+        jumps = [k for k, j in enumerate(idx) if j in set(jump_height_columns(problem))]
+        negative = sol[:, jumps] < 0 if jumps else None
+        if negative is not None and bool(negative.any()):
+            rows = negative.any(dim=1)
+            neg = negative[rows].to(A.dtype)  # (R, n_jumps): 1 where the height is held at 0
+            A2 = A[rows].clone()
+            pin = A2.new_zeros(A2.shape[0], len(jumps), A2.shape[2])  # a row c_k = 0 for each held height
+            for c, k in enumerate(jumps):
+                A2[:, :, k] = A2[:, :, k] * (1.0 - neg[:, c:c + 1])
+                pin[:, c, k] = neg[:, c]
+            A2 = torch.cat([A2, pin], dim=1)
+            t2 = torch.cat([target[rows], target.new_zeros(A2.shape[0], len(jumps))], dim=1)
+            sol2 = torch.linalg.lstsq(A2, t2.unsqueeze(-1), driver=driver).solution.squeeze(-1)
+            sol[rows] = sol2
+            sol[:, jumps] = sol[:, jumps].clamp_min(0.0)
         theta[:, idx] = sol.to(theta.dtype)
         return theta

@@ -107,7 +107,7 @@ def fit_report(model, *, result: dict | None = None, truth=None, title: str | No
     >>> import charcurves as cc
     >>> from charcurves.report import fit_report
     >>> from charcurves.systems import get_system
-    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric")
+    >>> model = cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3")
     >>> page = fit_report(model, truth="duffing").to_html()
     >>> "x'' + 0.3*x' + (x**3 - x) = F" in page.replace("&#x27;", "'")
     True
@@ -194,7 +194,7 @@ def write_fit_report(path: str | os.PathLike, out: str | os.PathLike, *, truth=N
     >>> from charcurves.report import write_fit_report
     >>> from charcurves.systems import get_system
     >>> folder = tempfile.mkdtemp()
-    >>> cc.fit(get_system("duffing").simulate(), method="parametric").save(os.path.join(folder, "model"))
+    >>> cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3").save(os.path.join(folder, "model"))
     >>> out = write_fit_report(os.path.join(folder, "model"), os.path.join(folder, "report.html"))
     >>> with open(out, encoding="utf-8") as fh:
     ...     print("<h1>" in fh.read())

@@ -84,7 +84,7 @@ def simulate_model_batch(model, t_eval, x0: Sequence[float], v0: Sequence[float]
     >>> from charcurves.simulate import simulate_model, simulate_model_batch, sinusoidal_forcing
     >>> from charcurves.systems import get_system
     >>> system = get_system("duffing")
-    >>> model = cc.fit(system.simulate(), method="parametric")
+    >>> model = cc.fit(system.simulate(), method="parametric", basis="f1=z; f2=z, z**3")
     >>> t = np.linspace(0.0, 20.0, 401)
     >>> A, W = np.array([0.5, 0.3]), np.array([1.2, 1.0])
     >>> runs = simulate_model_batch(model, t, [1.0, 0.0], [0.0, 0.5], lambda s: A * np.cos(W * s), rtol=1e-10,

@@ -44,7 +44,7 @@ def prepare_model_curves(model, *, evaluation: str = "auto", jump: str = "auto",
     >>> import charcurves as cc
     >>> from charcurves.simulate import prepare_model_curves
     >>> from charcurves.systems import get_system
-    >>> f1, f2 = prepare_model_curves(cc.fit(get_system("duffing").simulate(), method="parametric"))
+    >>> f1, f2 = prepare_model_curves(cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3"))
     >>> f1.evaluation, round(f2.smooth(2.0), 6), round(f2.derivative(2.0), 6)
     ('exact', 6.0, 11.0)
     """
@@ -416,7 +416,7 @@ def simulate_model(model, t_eval, x0: float, v0: float, forcing: Callable[[float
     >>> from charcurves.simulate import simulate_model, sinusoidal_forcing
     >>> from charcurves.systems import get_system
     >>> system = get_system("duffing")
-    >>> model = cc.fit(system.simulate(), method="parametric")
+    >>> model = cc.fit(system.simulate(), method="parametric", basis="f1=z; f2=z, z**3")
     >>> t = np.linspace(0.0, 20.0, 401)
     >>> res = simulate_model(model, t, system.x0, system.v0, sinusoidal_forcing(system.A, system.Omega))
     >>> res.status, float(np.max(np.abs(res.x - system.simulate(t_eval=t).x))) < 1e-3

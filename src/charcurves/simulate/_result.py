@@ -40,7 +40,7 @@ class SimulationResult:
     >>> from charcurves.simulate import SimulationResult, simulate_model, sinusoidal_forcing
     >>> from charcurves.systems import get_system
     >>> system = get_system("duffing")
-    >>> model = cc.fit(system.simulate(), method="parametric")
+    >>> model = cc.fit(system.simulate(), method="parametric", basis="f1=z; f2=z, z**3")
     >>> forcing = sinusoidal_forcing(system.A, system.Omega)
     >>> res = simulate_model(model, np.linspace(0, 20, 401), system.x0, system.v0, forcing)
     >>> isinstance(res, SimulationResult), res.ok, res.x.shape, res.details["f1"]

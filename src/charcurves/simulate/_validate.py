@@ -37,7 +37,7 @@ def free_run_error(model, traj, *, hold: str = "linear", substeps: int = 4, x0: 
     >>> from charcurves.systems import get_system
     >>> system = get_system("duffing")
     >>> record = system.simulate().slice(slice(0, 250))  # 10 s
-    >>> rmse, res = free_run_error(cc.fit(record, method="parametric"), record, x0=system.x0, v0=system.v0)
+    >>> rmse, res = free_run_error(cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3"), record, x0=system.x0, v0=system.v0)
     >>> res.status, rmse < 1e-3
     ('ok', True)
     """
@@ -66,7 +66,7 @@ def estimate_initial_state(model, traj, *, hold: str = "linear", substeps: int =
     >>> from charcurves.systems import get_system
     >>> system = get_system("duffing")
     >>> record = system.simulate()
-    >>> x0, v0 = estimate_initial_state(cc.fit(record, method="parametric"), record, substeps=1, n_fit=32)
+    >>> x0, v0 = estimate_initial_state(cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3"), record, substeps=1, n_fit=32)
     >>> (round(x0, 3), round(v0, 3)) == (round(system.x0, 3), round(system.v0, 3))
     True
     """
@@ -114,7 +114,7 @@ def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_co
     >>> folder = tempfile.mkdtemp()
     >>> record = get_system("duffing").simulate(t_end=10.0, n_points=251)
     >>> record.to_csv(os.path.join(folder, "record.csv"))
-    >>> cc.fit(record, method="parametric").save(os.path.join(folder, "model"))
+    >>> cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3").save(os.path.join(folder, "model"))
     >>> lines, failed = validate_cli(os.path.join(folder, "model"), os.path.join(folder, "record.csv"),
     ...                              rows=[slice(0, 200)], substeps=1)
     >>> lines[1].split(",")[0], failed

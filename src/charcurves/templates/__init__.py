@@ -23,6 +23,7 @@ from ._record import derivatives_given as derivatives_given
 from ._record import prepare_record as prepare_record
 from ._record import read_record as read_record
 from ._record import sticking_mask as sticking_mask
+from ._record import ESTIMATED_STICK_TOL as ESTIMATED_STICK_TOL
 from ._structure import FAMILY_ANCHORS as FAMILY_ANCHORS
 from ._structure import FAMILY_EQUATIONS as FAMILY_EQUATIONS
 from ._structure import EquationTemplate as EquationTemplate

@@ -9,7 +9,7 @@ import numpy as np
 from .._errors import ConfigError, DataError, IdentifiabilityError
 from ._structure import EquationTemplate
 
-__all__ = ["prepare_record", "sticking_mask", "read_record", "derivatives_given"]
+__all__ = ["prepare_record", "sticking_mask", "read_record", "derivatives_given", "ESTIMATED_STICK_TOL", "REST_TOL"]
 
 
 def derivatives_given(record, template: EquationTemplate, differentiator) -> bool:
@@ -137,12 +137,26 @@ def prepare_record(record, template: EquationTemplate, sym: dict, differentiator
     return record, estimated
 
 
-def sticking_mask(traj, *, rel_tol: float | None = None, min_run: int = 3) -> np.ndarray:
+#: |x'| threshold of the sticking test on estimated derivatives, relative to max|x'| (given
+#: derivatives: exact zeros, 1e-12)
+ESTIMATED_STICK_TOL = 0.05
+#: a sticking run rests: its median |x''| is at most this fraction of max|x''|
+REST_TOL = 0.1
+
+
+def sticking_mask(traj, *, rel_tol: float | None = None, min_run: int = 3, rest_tol: float = REST_TOL) -> np.ndarray:
     """Samples where the mass sticks (dry friction): x' = 0 over a run of samples.
 
     There the friction force is set-valued (any value with |f| <= mu*N), so these samples only
-    bound f1 and must not be fitted as points of the curve. ``rel_tol`` is the threshold on
-    |x'| relative to max|x'|: exact zeros (1e-12) for given derivatives, 1 % for estimated ones.
+    bound f1 and must not be fitted as points of the curve. A run counts when (1) |x'| stays
+    within ``rel_tol`` of max|x'| for at least ``min_run`` samples: exact zeros (1e-12) for given
+    derivatives, :data:`ESTIMATED_STICK_TOL` (5 %) for estimated ones; (2) the velocity does not
+    sweep that band (the least-squares trend of x' over the run changes by at most the band's
+    half-width, where a smooth turning point of a moving mass crosses it whole); (3) the mass
+    rests (the median |x''| over the run is at most ``rest_tol`` of max|x''|); and (4), for a
+    tolerance above exact zeros, x'' does not follow the forcing over the run (its trend is at most
+    half the forcing's: a mass held by friction does not respond, one that merely slows down
+    does). Records without x'' skip (3) and (4).
 
     Examples
     --------
@@ -152,22 +166,44 @@ def sticking_mask(traj, *, rel_tol: float | None = None, min_run: int = 3) -> np
     >>> mask = sticking_mask(record)
     >>> mask.shape, round(float(mask.mean()), 2)
     ((1000,), 0.37)
+    >>> int(sticking_mask(get_system("duffing").simulate(), rel_tol=0.05).sum())
+    0
     """
     if getattr(traj, "v", None) is None:  # multi-DOF records: sticking is not detected (see docs/families.md)
         return np.zeros(traj.n_samples, dtype=bool)
-    v = np.asarray(traj.v)
+    v = np.asarray(traj.v, dtype=float)
     if rel_tol is None:
         rel_tol = 1e-12
     thresh = rel_tol * max(float(np.max(np.abs(v))), 1e-300)
     small = np.abs(v) <= thresh
     if not small.any():
         return small
-    # keep runs of at least min_run samples (a single crossing of zero is not sticking)
+    t = np.asarray(traj.t, dtype=float)
+    a = getattr(traj, "a", None)
+    a = None if a is None else np.asarray(a, dtype=float)
+    a_max = 0.0 if a is None else float(np.max(np.abs(a)))
+    forcing = getattr(traj, "F", None)
+    forcing = None if forcing is None or rel_tol <= 1e-9 else np.asarray(forcing, dtype=float)
     mask = np.zeros_like(small)
     idx = np.flatnonzero(np.diff(np.concatenate([[0], small.astype(int), [0]])))
     for start, stop in zip(idx[::2], idx[1::2]):
-        if stop - start >= min_run:
-            mask[start:stop] = True
+        if stop - start < min_run:  # a single crossing of zero is not sticking
+            continue
+        tt, vv = t[start:stop], v[start:stop]
+        span = float(tt[-1] - tt[0])
+        trend = np.polyfit(tt - tt.mean(), vv, 1)[0] * span if span > 0 else 0.0
+        if abs(trend) > thresh:  # the velocity sweeps the band: a turning point, not a stop
+            continue
+        if a is not None and a_max > 0 and float(np.median(np.abs(a[start:stop]))) > rest_tol * a_max:
+            continue  # accelerating through x' = 0: the mass does not rest
+        if a is not None and forcing is not None and span > 0:
+            # held by friction, x'' stays put while the forcing moves; a mass that merely slows down
+            # follows the forcing (x, x' frozen: x'' changes as F does)
+            trend_a = np.polyfit(tt - tt.mean(), a[start:stop], 1)[0] * span
+            trend_f = np.polyfit(tt - tt.mean(), forcing[start:stop], 1)[0] * span
+            if abs(trend_a) > 0.5 * abs(trend_f):
+                continue
+        mask[start:stop] = True
     return mask
 
 
