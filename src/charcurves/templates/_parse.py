@@ -53,12 +53,18 @@ def show(expr) -> str:
     return re.sub(r"\b(\w+?)__d(\d)\b", lambda m: m.group(1) + "'" * int(m.group(2)), text)
 
 
+def _short(text: str) -> str:
+    """``text`` quoted, cut to 60 characters (a message stays one readable line)."""
+    t = text.strip()
+    return repr(t) if len(t) <= 60 else f"{t[:57]!r}... ({len(t)} characters)"
+
+
 def parse_side(text: str, where: str):
     import sympy as sp
     from sympy.core.function import AppliedUndef
     from sympy.parsing.sympy_parser import parse_expr, standard_transformations
 
-    from ..curves import first_disallowed_token
+    from ..curves import expression_shape_problem, first_disallowed_token
 
     def primes(m):
         name, marks = m.group(1), m.group(2)
@@ -87,6 +93,10 @@ def parse_side(text: str, where: str):
             "forcings F, F1, F2, time t, curves f1, f2, ..., scalars a1, a2, ..., numbers, + - * / ** and "
             + ", ".join(FUNCS)
         )
+    shape = expression_shape_problem(body)
+    if shape:  # before sympy: deep nesting recursed, products of sums expanded for minutes (issue 50)
+        raise ConfigError(f"{where}: the side {_short(text)} {shape}; write the terms out plainly, e.g. "
+                          "\"x'' + a1*x' + f1(x) = F\"")
     names = set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", body))
     local: dict[str, Any] = {n: getattr(sp, n) for n in FUNCS}
     local.update({"abs": sp.Abs, "pi": sp.pi, "E": sp.E})
@@ -106,7 +116,7 @@ def parse_side(text: str, where: str):
     except ConfigError:
         raise
     except Exception as exc:  # sympy raises many types for bad syntax; none may escape as a traceback
-        raise ConfigError(f"{where}: cannot parse {text.strip()!r} ({type(exc).__name__}); "
+        raise ConfigError(f"{where}: cannot parse {_short(text)} ({type(exc).__name__}); "
                           "write e.g. \"x'' + a1*x' + f1(x) = F\"") from None
     if not isinstance(expr, sp.Expr):
         raise ConfigError(f"{where}: {text.strip()!r} is not an expression")
