@@ -17,7 +17,7 @@ Examples
 ...     check_number("bands", 10**11)
 ... except ValueError as exc:
 ...     print(str(exc)[:60])
-bands (--bands) must be an integer from 3 to 1000 (each membe
+bands (--bands) must be an integer from 3 to 1000 (each memb
 """
 
 from __future__ import annotations
