@@ -251,7 +251,7 @@ SIMULATE = [
     Bad("simulate-two-dof-too-many-points", "", ("two-dof", "--n-points", "2000001"),
         ("argument --n-points: must be an integer from 2 to 2000000", "got 2000001"), est_kw=None, command="simulate"),
     Bad("simulate-endless-time", "", ("duffing", "--t-end", "1e12"),
-        ("argument --t-end: must be a number from 0.001 to 100000", "about 1 s per 1000", "got 1e+12"), est_kw=None,
+        ("argument --t-end: must be a number from 0.001 to 100000", "about 1 s per 1000", "got 1e12"), est_kw=None,
         command="simulate"),
     Bad("simulate-seed-beyond-32-bits", "", ("duffing", "--snr", "20", "--seed", "99999999999999999999"),
         ("argument --seed: must be an integer from 0 to 4294967295",), est_kw=None, command="simulate"),

@@ -131,9 +131,11 @@ def _problem(b: Bound, value: Any) -> str | None:
     return None
 
 
-def _message(b: Bound, value: Any, label: str) -> str:
+def _message(b: Bound, value: Any, label: str, shown: str | None = None) -> str:
     kind = "an integer" if b.kind == "int" else "a number"
-    if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+    if shown is not None:
+        pass
+    elif isinstance(value, numbers.Integral) and not isinstance(value, bool):
         shown = f"{int(value)}" if abs(int(value)) < 10**30 else f"an integer of {len(str(abs(int(value))))} digits"
     elif isinstance(value, float) and math.isfinite(value) and float(f"{value:g}") == value:
         shown = f"{value:g}"  # 1e+12, not 1000000000000.0
@@ -175,7 +177,7 @@ def cli_number(name: str) -> Callable[[str], Any]:
                                              f"{_fmt(b.upper(), b.kind)} ({b.why}), got {shown}")
         value = int(stripped) if b.kind == "int" else float(stripped)
         if _problem(b, value) is not None:
-            raise argparse.ArgumentTypeError(_message(b, value, "the value")[len("the value "):])
+            raise argparse.ArgumentTypeError(_message(b, value, "the value", shown=stripped)[len("the value "):])
         return value
 
     parse.__name__ = b.kind  # argparse names the type in its own messages

@@ -109,6 +109,9 @@ def parse_basis_function(text: str):
                           "write an expression of z such as 'z**3'") from None
     if not isinstance(expr, sp.Expr):
         raise ConfigError(f"basis function {text!r} is not an expression of z")
+    if expr.has(sp.I, sp.zoo, sp.oo, sp.nan):  # sqrt(-1), 1/0: no real, finite column
+        raise ConfigError(f"basis function {text[:60]!r} has a value that is not a finite real number (division by "
+                          "zero, sqrt or log of a negative number?); write a real closed form such as 'z**3'")
     extra = expr.free_symbols - {z}
     if extra:
         raise ConfigError(
@@ -207,14 +210,16 @@ def _op_kind(node) -> str | None:
 def _shape_problem(tree) -> str | None:
     import ast
 
-    nodes = [n for n in _post_order(tree) if not isinstance(n, ast.expr_context)]
+    _MARKERS = (ast.expr_context, ast.operator, ast.unaryop, ast.cmpop, ast.boolop)  # not parts of their own
+
+    nodes = [n for n in _post_order(tree) if not isinstance(n, _MARKERS)]
     if len(nodes) > MAX_NODES:
         return f"has {len(nodes)} parts, more than {MAX_NODES}"
     depth: dict[int, int] = {}
     terms: dict[int, float] = {}
     worst = 1.0
     for node in nodes:
-        kids = [k for k in ast.iter_child_nodes(node) if not isinstance(k, ast.expr_context)]
+        kids = [k for k in ast.iter_child_nodes(node) if not isinstance(k, _MARKERS)]
         kind = _op_kind(node)
         # a chain of the same operation (a + b + c, a*b*c) is one level, as sympy flattens it
         depth[id(node)] = max([depth[id(k)] + (0 if kind is not None and _op_kind(k) == kind and kind != "pow"
@@ -237,8 +242,9 @@ def _shape_problem(tree) -> str | None:
         n = min(n, 1e300)
         terms[id(node)] = n
         worst = max(worst, n)
-    if depth[id(tree)] > MAX_NESTING:
-        return f"nests operations {depth[id(tree)]} deep, more than {MAX_NESTING}"
+    top = depth[id(tree.body)] if isinstance(tree, ast.Expression) else depth[id(tree)]
+    if top > MAX_NESTING:
+        return f"nests operations {top} deep, more than {MAX_NESTING}"
     if worst > MAX_EXPANDED_TERMS:
         return f"expands to more than {MAX_EXPANDED_TERMS} terms (about {worst:.3g})"
     return None

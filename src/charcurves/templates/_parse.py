@@ -49,8 +49,8 @@ def display(sym_name: str) -> str:
 
 def show(expr) -> str:
     """An expression with its internal derivative names as written (``3*x__d2**2`` -> ``3*x''**2``)."""
-    text = str(expr)
-    return re.sub(r"\b(\w+?)__d(\d)\b", lambda m: m.group(1) + "'" * int(m.group(2)), text)
+    text = re.sub(r"\b(\w+?)__d(\d)\b", lambda m: m.group(1) + "'" * int(m.group(2)), str(expr))
+    return text if len(text) <= 120 else text[:100] + f"... ({len(text)} characters)"  # messages stay readable
 
 
 def _short(text: str) -> str:
@@ -122,7 +122,7 @@ def parse_side(text: str, where: str):
         raise ConfigError(f"{where}: {text.strip()!r} is not an expression")
     if expr.has(sp.zoo, sp.oo, sp.nan, sp.I) or any(
             not (n.is_real and n.is_finite and abs(float(n)) < 1e300) for n in expr.atoms(sp.Number)):
-        raise ConfigError(f"{where}: {text.strip()!r} contains a value that is not a finite real number "
+        raise ConfigError(f"{where}: {_short(text)} contains a value that is not a finite real number "
                           "(division by zero, log(0), sqrt of a negative number?); write real, finite terms")
     for n in names:
         if CURVE.match(n) and not any(isinstance(a, AppliedUndef) and a.func.__name__ == n
