@@ -362,3 +362,13 @@ def test_an_equation_side_is_refused_with_one_line_or_built(text):
             EquationTemplate(_EQ.format(text.replace("z", "x")))
         except (CharCurvesError, DataError) as exc:
             assert "\n" not in str(exc) and len(str(exc)) < 500, str(exc)
+
+
+def test_the_docs_page_shows_the_table_the_code_checks():
+    from pathlib import Path
+
+    from charcurves._bounds import markdown_table
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "options.md").read_text(encoding="utf-8")
+    assert markdown_table() in page
+    assert "options.md" in (Path(__file__).resolve().parents[1] / "mkdocs.yml").read_text(encoding="utf-8")

@@ -32,7 +32,8 @@ from typing import Any
 
 from ._errors import ConfigError
 
-__all__ = ["Bound", "BOUNDS", "THREADS_PER_CORE", "check_number", "cli_number", "range_text", "max_threads"]
+__all__ = ["Bound", "BOUNDS", "THREADS_PER_CORE", "check_number", "cli_number", "range_text", "max_threads",
+           "markdown_table"]
 
 #: threads (torch) and workers (processes) allowed per CPU core: more only slows the work down, and
 #: thousands of threads crash the process (issue 50: --threads 100000 ended in a segmentation fault)
@@ -116,6 +117,18 @@ def range_text(name: str) -> str:
     """``"1 ... 64: why"`` for help texts and docs (the limits as checked on this machine)."""
     b = BOUNDS[name]
     return f"{_fmt(b.low, b.kind)} ... {_fmt(b.upper(), b.kind)}: {b.why}"
+
+
+def markdown_table() -> str:
+    """The ranges as the Markdown table of ``docs/options.md`` (a test keeps the page equal to it);
+    the thread bounds are written as their rule, not as this machine's number."""
+    rows = ["| Option | Key | Range | Why the range ends there |", "|---|---|---|---|"]
+    for name, b in BOUNDS.items():
+        high = f"{THREADS_PER_CORE} x CPU count" if callable(b.high) else _fmt(b.high, b.kind)
+        options = ", ".join(f"`{o}`" for o in b.options)
+        kind = "integer" if b.kind == "int" else "number"
+        rows.append(f"| {options} | `{name}` | {kind}, {_fmt(b.low, b.kind)} ... {high} | {b.why} |")
+    return "\n".join(rows) + "\n"
 
 
 def _problem(b: Bound, value: Any) -> str | None:

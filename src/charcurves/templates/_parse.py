@@ -93,10 +93,6 @@ def parse_side(text: str, where: str):
             "forcings F, F1, F2, time t, curves f1, f2, ..., scalars a1, a2, ..., numbers, + - * / ** and "
             + ", ".join(FUNCS)
         )
-    shape = expression_shape_problem(body)
-    if shape:  # before sympy: deep nesting recursed, products of sums expanded for minutes (issue 50)
-        raise ConfigError(f"{where}: the side {_short(text)} {shape}; write the terms out plainly, e.g. "
-                          "\"x'' + a1*x' + f1(x) = F\"")
     names = set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", body))
     local: dict[str, Any] = {n: getattr(sp, n) for n in FUNCS}
     local.update({"abs": sp.Abs, "pi": sp.pi, "E": sp.E})
@@ -111,6 +107,10 @@ def parse_side(text: str, where: str):
         _check_powers(parse_expr(body, local_dict=local,
                                  global_dict={**gdict, "Add": sp.Add, "Mul": sp.Mul, "Pow": sp.Pow},
                                  transformations=standard_transformations, evaluate=False), where)
+        shape = expression_shape_problem(body)
+        if shape:  # before sympy evaluates: products of sums expanded for minutes, nesting recursed (issue 50)
+            raise ConfigError(f"{where}: the side {_short(text)} {shape}; write the terms out plainly, e.g. "
+                              "\"x'' + a1*x' + f1(x) = F\"")
         expr = parse_expr(body, local_dict=local, global_dict=dict(gdict), transformations=standard_transformations,
                           evaluate=True)
     except ConfigError:
