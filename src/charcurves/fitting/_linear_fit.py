@@ -106,7 +106,13 @@ def fit_linear(record, template: EquationTemplate, reps: dict, *, method: str, m
         pinned[nm] = rep.symmetry_name == "odd" if nm in carriers else bool(rep.pinned_at_zero)
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            phi = _features_numpy(rep, (u_raw - c) / h)
+            try:
+                phi = _features_numpy(rep, (u_raw - c) / h)
+            except (TypeError, ValueError, RuntimeError, OverflowError) as exc:  # torch on an odd closed form
+                funcs = rep.function_list() if hasattr(rep, "function_list") else None
+                raise ConfigError(f"the curve {nm} ({', '.join(funcs)[:80] if funcs else type(rep).__name__}) cannot "
+                                  f"be evaluated on the record ({type(exc).__name__}: {str(exc)[:80]}); write plain "
+                                  "closed forms of z such as 'z**3' or 'tanh(50*z)'") from None
         _check_columns(rep, nm, template, phi, u_raw)
         for k in range(phi.shape[1]):
             cols.append(D["mult"][nm] * np.tile(phi[:, k], E))
