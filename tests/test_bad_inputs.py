@@ -198,37 +198,39 @@ NAMES = [
 ]
 
 NUMBERS = [
-    Bad("seed-not-integer", "base", ("--seed", "abc"), ("--seed: invalid int value: 'abc'", "--help"),
+    Bad("seed-not-integer", "base", ("--seed", "abc"), ("seed", "must be an integer from 0 to 4294967295", "got 'abc'"),
         ConfigError, est_kw={"random_state": "abc"}),
-    Bad("seed-fraction", "base", ("--seed", "1.5"), ("--seed: invalid int value: '1.5'", "--help"),
+    Bad("seed-fraction", "base", ("--seed", "1.5"), ("seed", "must be an integer from 0 to 4294967295", "1.5"),
         ConfigError, est_kw={"random_state": 1.5}),
-    Bad("seed-negative", "base", ("--seed", "-1"), ("seed", "non-negative integer", "--seed 0"),
+    Bad("seed-negative", "base", ("--seed", "-1"), ("seed", "must be an integer from 0 to 4294967295", "--seed 0"),
         ConfigError, est_kw={"random_state": -1}),
-    Bad("threads-zero", "base", ("--threads", "0"), ("threads must be a positive integer", "--threads 1"),
+    Bad("threads-zero", "base", ("--threads", "0"), ("threads", "must be an integer from 1 to", "--threads 1"),
         ConfigError, est_kw={"threads": 0}),
-    Bad("threads-negative", "base", ("--threads", "-2"), ("threads must be a positive integer", "--threads 1"),
+    Bad("threads-negative", "base", ("--threads", "-2"), ("threads", "must be an integer from 1 to", "--threads 1"),
         ConfigError, est_kw={"threads": -2}),
-    Bad("threads-not-integer", "base", ("--threads", "many"), ("--threads: invalid int value",), ConfigError,
+    Bad("threads-not-integer", "base", ("--threads", "many"), ("threads", "must be an integer from 1 to", "'many'"),
+        ConfigError,
         est_kw={"threads": "many"}),
-    Bad("sample-rate-negative", "no_time", ("--sample-rate", "-5"), ("sample rate must be a positive number",
-                                                                     "--sample-rate 1000"),
+    Bad("sample-rate-negative", "no_time", ("--sample-rate", "-5"), ("sample-rate", "must be a number from 1e-09 to "
+                                                                     "1e+12", "--sample-rate 100"),
         csv_kw={"sample_rate": -5.0}),
-    Bad("sample-rate-zero", "no_time", ("--sample-rate", "0"), ("sample rate must be a positive number",),
+    Bad("sample-rate-zero", "no_time", ("--sample-rate", "0"), ("sample-rate", "must be a number from 1e-09"),
         csv_kw={"sample_rate": 0.0}),
-    Bad("sample-rate-nan", "no_time", ("--sample-rate", "nan"), ("sample rate must be a positive number",),
+    Bad("sample-rate-nan", "no_time", ("--sample-rate", "nan"), ("sample-rate", "must be a number from 1e-09", "nan"),
         csv_kw={"sample_rate": float("nan")}),
-    Bad("sample-rate-text", "no_time", ("--sample-rate", "fast"), ("--sample-rate: invalid float value",),
+    Bad("sample-rate-text", "no_time", ("--sample-rate", "fast"), ("sample-rate", "must be a number from", "'fast'"),
         csv_kw={"sample_rate": "fast"}),
     Bad("rows-not-a-range", "base", ("--rows", "abc"), ("--rows must be start:stop", "100:5000"), est_kw=None),
     Bad("rows-reversed", "base", ("--rows", "500:300"), ("rows 500:300 select 0 of 1000 rows", "wider start:stop"),
         csv_kw={"rows": slice(500, 300)}),
     Bad("sr-generations-negative", "base", ("--method", "sr", "--sr-generations", "-3"),
-        ("generations must be an integer >= 1", "-3"), ConfigError,
+        ("sr-generations", "must be an integer from 1 to 10000", "-3"), ConfigError,
         est_kw={"method": "sr", "sr_options": {"generations": -3}}),
-    Bad("sr-max-size-zero", "base", ("--method", "sr", "--sr-max-size", "0"), ("max_size must be an integer >= 3",),
+    Bad("sr-max-size-zero", "base", ("--method", "sr", "--sr-max-size", "0"),
+        ("sr-max-size", "must be an integer from 3 to 100", "got 0"),
         ConfigError, est_kw={"method": "sr", "sr_options": {"max_size": 0}}),
     Bad("sr-populations-zero", "base", ("--method", "sr-cc", "--sr-populations", "0"),
-        ("populations must be an integer >= 1",), ConfigError,
+        ("sr-populations", "must be an integer from 1 to 100", "got 0"), ConfigError,
         est_kw={"method": "sr-cc", "sr_options": {"populations": 0}}),
     Bad("out-is-a-file", "base", ("--out", "{file}"), ("is a file, not a directory", "give a directory path"),
         ConfigError, est_kw=None),
@@ -238,9 +240,9 @@ NUMBERS = [
 
 RECORDS = [  # issue 25: conflicting or impossible record options, huge values
     Bad("seed-beyond-32-bits", "base", ("--seed", "99999999999999999999"),
-        ("--seed must be a non-negative integer of at most 32 bits", "4294967295", "got 99999999999999999999",
-         "--seed 0"), ConfigError, est_kw=None),
-    Bad("seed-just-beyond-32-bits", "base", ("--seed", str(2**32)), ("at most 32 bits", "got 4294967296"),
+        ("argument --seed: must be an integer from 0 to 4294967295", "got 99999999999999999999", "--seed 0"),
+        ConfigError, est_kw=None),
+    Bad("seed-just-beyond-32-bits", "base", ("--seed", str(2**32)), ("32-bit range", "got 4294967296"),
         ConfigError, est_kw=None),
     Bad("sample-rate-with-a-time-column", "base", ("--sample-rate", "100"),
         ("the file has a time column 't'", "drop --sample-rate", "--time-col none"), csv_kw={"sample_rate": 100.0}),
@@ -262,22 +264,25 @@ RECORDS = [  # issue 25: conflicting or impossible record options, huge values
 
 SIMULATE = [
     Bad("simulate-too-many-points", "", ("duffing", "--n-points", "2000000000"),
-        ("n_points (--n-points) 2000000000 is more than the 2,000,000 samples", "give at most 2000000"), est_kw=None,
+        ("argument --n-points: must be an integer from 2 to 2000000", "got 2000000000"), est_kw=None,
         command="simulate"),
     Bad("simulate-two-dof-too-many-points", "", ("two-dof", "--n-points", "2000001"),
-        ("n_points (--n-points) 2000001", "give at most 2000000"), est_kw=None, command="simulate"),
+        ("argument --n-points: must be an integer from 2 to 2000000", "got 2000001"), est_kw=None, command="simulate"),
     Bad("simulate-endless-time", "", ("duffing", "--t-end", "1e12"),
-        ("t_end (--t-end) 1e+12 is longer than the 100000 time units", "give a shorter t_end"), est_kw=None,
+        ("argument --t-end: must be a number from 0.001 to 100000", "about 1 s per 1000", "got 1e12"), est_kw=None,
         command="simulate"),
     Bad("simulate-seed-beyond-32-bits", "", ("duffing", "--snr", "20", "--seed", "99999999999999999999"),
-        ("--seed must be a non-negative integer of at most 32 bits",), est_kw=None, command="simulate"),
+        ("argument --seed: must be an integer from 0 to 4294967295",), est_kw=None, command="simulate"),
     Bad("simulate-unknown-system", "", ("triple-pendulum",), ("invalid choice: 'triple-pendulum'",), est_kw=None,
         command="simulate"),
-    Bad("simulate-one-point", "", ("duffing", "--n-points", "1"), ("n_points must be an integer >= 2",), est_kw=None,
+    Bad("simulate-one-point", "", ("duffing", "--n-points", "1"), ("--n-points: must be an integer from 2", "got 1"),
+        est_kw=None,
         command="simulate"),
-    Bad("simulate-negative-duration", "", ("duffing", "--t-end", "-5"), ("t_end must be positive",), est_kw=None,
+    Bad("simulate-negative-duration", "", ("duffing", "--t-end", "-5"), ("--t-end: must be a number from 0.001",
+                                                                       "got -5;"), est_kw=None,
         command="simulate"),
-    Bad("simulate-snr-nan", "", ("duffing", "--snr", "nan"), ("snr_db is nan", "e.g. snr_db=20"), est_kw=None,
+    Bad("simulate-snr-nan", "", ("duffing", "--snr", "nan"), ("--snr: must be a number from -300 to 300", "'nan'"),
+        est_kw=None,
         command="simulate"),
     Bad("simulate-out-is-a-directory", "", ("duffing", "--out", "{dir}"), ("cannot write", "is a directory",
                                                                           "check the path"),
@@ -649,9 +654,9 @@ def test_every_command_bounds_its_seed_before_any_work(command, seed, files, tmp
     code = main(_command_argv(command, files, out_dir, "--seed", seed))
     err = capsys.readouterr().err
     assert code == 2, err
-    assert err.count("\n") == 1 and err.startswith("charcurves: error: --seed must be a non-negative integer of at "
-                                                    "most 32 bits (0 ... 4294967295, "), err
-    assert f"got {seed}; e.g. --seed 0" in err
+    assert err.count("\n") == 1 and err.startswith("charcurves: error: argument --seed: must be an integer from 0 to "
+                                                    "4294967295 (the 32-bit range "), err
+    assert f"got {seed}; give e.g. --seed 0" in err
     assert not out_dir.exists()
 
 

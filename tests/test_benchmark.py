@@ -120,7 +120,7 @@ def test_noise_on_state_runs_appendix_f_alone_with_both_protocols(tmp_path, caps
     (["--systems", "pendulum"], "unknown system 'pendulum' in --systems; choose from duffing, stick-slip"),
     (["--snr", "40,abc"], "--snr must be comma-separated dB values such as 40,20,0, got '40,abc'"),
     (["--snr", "40,,0"], "--snr must be comma-separated dB values such as 40,20,0, got '40,,0'"),
-    (["--realizations", "0"], "--realizations must be a positive integer, got 0"),
+    (["--realizations", "0"], "argument --realizations: must be an integer from 1 to 1000 (each realisation"),
     (["--skip", "tables"], "unknown skip 'tables' in --skip; choose from forward, lyapunov"),
     (["--preset", "fast"], "unknown preset 'fast'; choose one of default, paper"),
 ])

@@ -98,7 +98,8 @@ def test_holds():
     assert np.max(np.abs(m[inner] - np.sin(t[:-1] + 0.025)[inner])) < 1e-3
     with pytest.raises(ConfigError, match="unknown input hold 'cubic'; choose one of linear, zoh, bandlimited"):
         stage_inputs(u, 1, "cubic")
-    with pytest.raises(ConfigError, match="substeps must be a positive integer"):
+    with pytest.raises(ConfigError, match=r"substeps \(--refine-substeps, validate --substeps\) must be an integer "
+                                          r"from 1 to 64 \(RK4 steps per sample"):
         stage_inputs(u, 0, "linear")
 
 
@@ -224,7 +225,7 @@ def test_refinement_options_are_checked(duffing_record):
         cc.fit(traj, method="parametric", basis="f1=z; f2=z, z**3", free_gain=True, refine="output-error", refine_options={"segments": 3})
     with pytest.raises(ConfigError, match="unknown refine 'simulation'; choose one of none, output-error, auto"):
         cc.fit(traj, method="parametric", basis="f1=z; f2=z, z**3", refine="simulation")
-    with pytest.raises(ConfigError, match="segment_length must be an integer >= 16"):
+    with pytest.raises(ConfigError, match=r"segment_length \(--segment-length\) must be an integer from 16 to 100000"):
         refine_output_error(model, traj, segment_length=4)
     uneven = Trajectory(t=np.r_[np.arange(100) * DT, 100 * DT + 0.3 + np.arange(100) * DT], x=np.zeros(200),
                         F=np.zeros(200))
@@ -298,8 +299,10 @@ def test_cli_refines_by_default_for_free_gain_closed_forms(tmp_path, duffing_csv
     (["--refine", "bogus"], "charcurves: error: unknown refine 'bogus'; choose one of none, output-error, auto"),
     (["--refine-hold", "cubic"], "charcurves: error: unknown input hold 'cubic'; choose one of linear, zoh, "
                                  "bandlimited"),
-    (["--refine-substeps", "0"], "charcurves: error: substeps must be a positive integer (RK4 steps per sample), "
-                                 "got 0"),
+    (["--refine-substeps", "0"], "charcurves: error: argument --refine-substeps: must be an integer from 1 to 64 "
+                                 "(RK4 steps per sample: time and memory of output error grow in proportion; the "
+                                 "default chooses 1 to 8), got 0; give e.g. --refine-substeps 4 (see 'charcurves fit "
+                                 "--help')"),
 ])
 def test_cli_bad_refine_values(tmp_path, duffing_csv, extra, message, cli):
     args = ["fit", duffing_csv, "--x-col", "y", "--force-col", "u", "--sample-rate", 1 / DT, "--free-gain",

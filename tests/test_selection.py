@@ -254,7 +254,7 @@ def test_cli_select_prints_the_table_and_writes_json_and_csv(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--members", "2"], "--members must be at least 3"),
+    (["--members", "2"], "argument --members: must be an integer from 3 to 1000 (each member is one more fit"),
     (["--families", "separable,bogus"], "unknown family 'bogus'"),
     (["--families", ","], "--families is empty"),
 ])

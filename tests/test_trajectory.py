@@ -437,7 +437,8 @@ def test_missing_time_column_suggests_time_col_or_sample_rate():
 @pytest.mark.parametrize("rate", [0, -1.0, np.nan, np.inf, "fast"])
 def test_bad_sample_rate(rate):
     _raises(lambda: Trajectory.from_dataframe({"x": np.zeros(5), "F": np.zeros(5)}, sample_rate=rate),
-            r"sample rate must be a positive number of Hz", re.escape(repr(rate)), r"--sample-rate")
+            r"the sample rate \(--sample-rate\) must be a number from 1e-09 to 1e\+12 \(Hz;",
+            r"got " + ("-1;" if rate == -1.0 else re.escape(repr(rate))), r"give e\.g\. --sample-rate 100")
 
 
 @pytest.mark.parametrize("rows, n_sel", [(slice(5, 6), 1), (slice(8, 8), 0), (slice(9, 3), 0), (slice(9, None), 1)])

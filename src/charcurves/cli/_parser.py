@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from .._bounds import cli_number, range_text
 from ._common import MAX_SEED, UsageError
 
 __all__ = ["build_parser"]
@@ -13,17 +14,25 @@ _TIME_HELP = "time column (default t); none: ignore any time column and use --sa
 _RATE_HELP = "Hz, for a file without a time column (with one: drop it, or pass --time-col none)"
 
 
+def ranged(name: str, text: str) -> str:
+    """A help text with the option's range from the one table (charcurves._bounds.BOUNDS)."""
+    return f"{text}; range {range_text(name)}"
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str):  # one line, exit 2, no usage dump
         raise UsageError(f"{message} (see '{self.prog} --help')")
 
 
 def _rows(text: str) -> slice:
-    try:
-        start, stop = text.split(":")
-        return slice(int(start) if start.strip() else None, int(stop) if stop.strip() else None)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--rows must be START:STOP with integers, e.g. 100:5000, got {text!r}") from None
+    import re
+
+    parts = text.split(":")
+    if len(parts) != 2 or len(text) > 41 or not all(re.fullmatch(r"\s*(-?[0-9]+)?\s*", p) for p in parts):
+        shown = repr(text) if len(text) <= 41 else f"{text[:20]!r}... ({len(text)} characters)"
+        raise argparse.ArgumentTypeError(f"--rows must be START:STOP with integers, e.g. 100:5000, got {shown}")
+    start, stop = parts
+    return slice(int(start) if start.strip() else None, int(stop) if stop.strip() else None)
 
 
 def build_parser(version: str) -> argparse.ArgumentParser:
@@ -39,16 +48,16 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                                         "t,x1,x2,v1,a1,v2,a2,F1,F2)")
     s.add_argument("system", choices=SYSTEM_NAMES, help="which system: " + ", ".join(SYSTEM_NAMES))
     s.add_argument("--out", required=True, help="output CSV file")
-    s.add_argument("--snr", type=float, default=None, help="noise level in dB (default: no noise)")
+    s.add_argument("--snr", type=cli_number("snr_db"), default=None, help=ranged("snr_db", "noise level in dB (default: no noise)"))
     s.add_argument("--noise-on", choices=["force", "state"], default="force",
                    help="where the noise goes: the forcing F (default, the paper) or the position x (appendix F)")
     s.add_argument("--noise-reference", choices=["std", "rms"], default=None,
                    help="sigma of the clean signal: std (paper) or rms (authors' scripts, forcing)")
-    s.add_argument("--seed", type=int, default=0, help=_SEED_HELP)
+    s.add_argument("--seed", type=cli_number("seed"), default=0, help=_SEED_HELP)
     s.add_argument("--variant", default="paper", help="paper (default), scripts, or smooth (stick-slip)")
-    s.add_argument("--t-end", type=float, default=40.0,
+    s.add_argument("--t-end", type=cli_number("t_end"), default=40.0,
                    help=f"end time (default 40; at most {MAX_SIMULATE_SPAN:g}: about 1 s of integration per 1000)")
-    s.add_argument("--n-points", type=int, default=1000,
+    s.add_argument("--n-points", type=cli_number("n_points"), default=1000,
                    help=f"samples (default 1000; at most {MAX_SIMULATE_POINTS:,}, a CSV of about 0.25 GB)")
 
     f = sub.add_parser("fit", help="identify the characteristic curves of a record")
@@ -72,7 +81,7 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                    help="with --free-gain: which measured side carries the noise and is regressed on "
                         "(force: the paper's loss; acceleration: noise on the measured state)")
     f.add_argument("--preset", default="default", help="training preset: default or paper")
-    f.add_argument("--seed", type=int, default=0, help=_SEED_HELP)
+    f.add_argument("--seed", type=cli_number("seed"), default=0, help=_SEED_HELP)
     f.add_argument("--derivatives", default="auto",
                    help="auto (the record's v, a columns when present, else spectral), given, savgol, spline, spectral, "
                         "kalman, tvr or fd")
@@ -81,19 +90,23 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                         "velocity curve when the record has sticking phases; none: never")
     f.add_argument("--basis", default=None, help="parametric basis, e.g. \"f1=z; f2=z, z**3\"")
     f.add_argument("--sr-engine", default=None, help="symbolic-regression engine: operon (default) or pysr")
-    f.add_argument("--sr-generations", type=int, default=None, help="SR generations (iterations)")
-    f.add_argument("--sr-populations", type=int, default=None, help="symbolic regression: independent populations (PySR islands; Operon restarts; default 1)")
-    f.add_argument("--sr-max-size", type=int, default=None, help="largest expression size (default 20)")
+    f.add_argument("--sr-generations", type=cli_number("sr_generations"), default=None,
+                   help=ranged("sr_generations", "SR generations (iterations)"))
+    f.add_argument("--sr-populations", type=cli_number("sr_populations"), default=None,
+                   help=ranged("sr_populations", "symbolic regression: independent populations (PySR islands; Operon restarts; default 1)"))
+    f.add_argument("--sr-max-size", type=cli_number("sr_max_size"), default=None,
+                   help=ranged("sr_max_size", "largest expression size (default 20)"))
     f.add_argument("--keep-sticking", action="store_true", help="fit samples where x' = 0 over a run too")
     f.add_argument("--time-col", default="t", help=_TIME_HELP)
     f.add_argument("--x-col", default="x", help="the position column (default x)")
     f.add_argument("--force-col", default="F", help="the forcing column (default F)")
-    f.add_argument("--sample-rate", type=float, default=None, help=_RATE_HELP)
+    f.add_argument("--sample-rate", type=cli_number("sample_rate"), default=None, help=_RATE_HELP)
     f.add_argument("--rows", type=_rows, default=None, help="START:STOP rows to use")
     f.add_argument("--truth", default=None,
                    help=f"benchmark system ({', '.join(SYSTEM_NAMES)}) to compare the curves with")
     f.add_argument("--truth-variant", default="paper", help="parameter set of --truth (default paper)")
-    f.add_argument("--threads", type=int, default=None, help="torch threads (default: 1 per process)")
+    f.add_argument("--threads", type=cli_number("threads"), default=None,
+                   help=ranged("threads", "torch threads (default: 1 per process)"))
     f.add_argument("--device", default="cpu", help="torch device of the neural fits: cpu (default) or cuda")
     f.add_argument("--no-figure", action="store_true", help="do not draw curves.png")
     f.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
@@ -105,17 +118,21 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                    help="older name of --objective (none = equation-error)")
     f.add_argument("--refine-hold", default=None, help="output error: the input between samples in the free run: "
                                                         "linear (default), zoh, bandlimited")
-    f.add_argument("--refine-substeps", type=int, default=None,
-                   help="output error: RK4 steps per sample (default: chosen from the record's samples per period)")
-    f.add_argument("--segment-length", type=int, default=None,
-                   help="output error: samples per shooting segment (default 64)")
-    f.add_argument("--snr", type=float, default=None,
-                   help="known SNR of the forcing in dB, for the self-check's noise floor (default: estimated)")
-    f.add_argument("--bands", type=int, default=None, metavar="N",
-                   help="uncertainty bands of the curves from an ensemble of N refits (result.json, curves.png)")
+    f.add_argument("--refine-substeps", type=cli_number("substeps"), default=None,
+                   help=ranged("substeps", "output error: RK4 steps per sample (default: chosen from the record's "
+                                           "samples per period)"))
+    f.add_argument("--segment-length", type=cli_number("segment_length"), default=None,
+                   help=ranged("segment_length", "output error: samples per shooting segment (default 64)"))
+    f.add_argument("--snr", type=cli_number("snr_db"), default=None,
+                   help=ranged("snr_db", "known SNR of the forcing in dB, for the self-check's noise floor (default: "
+                                         "estimated)"))
+    f.add_argument("--bands", type=cli_number("bands"), default=None, metavar="N",
+                   help=ranged("bands", "uncertainty bands of the curves from an ensemble of N refits (result.json, "
+                                        "curves.png)"))
     f.add_argument("--bands-kind", choices=["bootstrap", "seeds"], default="bootstrap",
                    help="ensemble of --bands: wild residual bootstrap of the forcing (default) or training seeds")
-    f.add_argument("--bands-level", type=float, default=0.95, help="coverage level of --bands (default 0.95)")
+    f.add_argument("--bands-level", type=cli_number("bands_level"), default=0.95,
+                   help=ranged("bands_level", "coverage level of --bands (default 0.95)"))
     f.add_argument("--report", action="store_true",
                    help="also write report.html: one self-contained page with the equation, curves, diagnostics, "
                         "settings and versions (as 'charcurves report')")
@@ -137,29 +154,32 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     v.add_argument("--time-col", default="t", help=_TIME_HELP)
     v.add_argument("--x-col", default="x", help="the position column (default x)")
     v.add_argument("--force-col", default="F", help="the forcing column (default F)")
-    v.add_argument("--sample-rate", type=float, default=None, help=_RATE_HELP)
+    v.add_argument("--sample-rate", type=cli_number("sample_rate"), default=None, help=_RATE_HELP)
     v.add_argument("--hold", default=None, help="linear, zoh or bandlimited (default: the model's refinement's, "
                                                 "else linear)")
-    v.add_argument("--substeps", type=int, default=None, help="RK4 steps per sample (default: as refined, else 4)")
+    v.add_argument("--substeps", type=cli_number("substeps"), default=None,
+                   help=ranged("substeps", "RK4 steps per sample (default: as refined, else 4)"))
     v.add_argument("--out", default=None, help="directory for validation.json and validation.png")
 
     d = sub.add_parser("demo", help="simulate Duffing at 20 dB, fit NN-CC+sym, write results")
     d.add_argument("--out", default="charcurves-demo", help="output directory (default charcurves-demo)")
-    d.add_argument("--seed", type=int, default=0, help=_SEED_HELP)
-    d.add_argument("--threads", type=int, default=None, help="torch threads (default 1)")
+    d.add_argument("--seed", type=cli_number("seed"), default=0, help=_SEED_HELP)
+    d.add_argument("--threads", type=cli_number("threads"), default=None, help=ranged("threads", "torch threads (default 1)"))
 
     sel = sub.add_parser("select", help="model selection: run the three validation loops on candidate families")
     sel.add_argument("csv", nargs="+", help="CSV records of one system (other initial conditions or forcings)")
     sel.add_argument("--families", default="separable,position-damping",
                      help="candidate families, simplest first (default separable,position-damping)")
     sel.add_argument("--method", default="nn-cc", help="fitting method for every family (default nn-cc)")
-    sel.add_argument("--members", type=int, default=6, help="bootstrap members per record (default 6)")
-    sel.add_argument("--snr", type=float, default=None, help="known SNR of the forcing in dB (default: estimated)")
+    sel.add_argument("--members", type=cli_number("members"), default=6,
+                     help=ranged("members", "bootstrap members per record (default 6)"))
+    sel.add_argument("--snr", type=cli_number("snr_db"), default=None,
+                     help=ranged("snr_db", "known SNR of the forcing in dB (default: estimated)"))
     sel.add_argument("--all", action="store_true", help="test every family and run every loop (more figures)")
     sel.add_argument("--out", default=None, help="directory for selection.json and selection.csv")
-    sel.add_argument("--seed", type=int, default=0, help=_SEED_HELP)
+    sel.add_argument("--seed", type=cli_number("seed"), default=0, help=_SEED_HELP)
     sel.add_argument("--derivatives", default="auto", help="auto, given, savgol, spline, spectral or fd")
-    sel.add_argument("--threads", type=int, default=None, help="torch threads (default 1)")
+    sel.add_argument("--threads", type=cli_number("threads"), default=None, help=ranged("threads", "torch threads (default 1)"))
     sel.add_argument("--time-col", default="t", help="the time column (default t)")
     sel.add_argument("--x-col", default="x", help="the position column (default x)")
     sel.add_argument("--force-col", default="F", help="the forcing column (default F)")
@@ -175,8 +195,8 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                    help=f"comma-separated methods (default: all: {', '.join(METHODS)})")
     b.add_argument("--snr", default=None,
                    help="comma-separated SNR levels in dB (default 40,20,0; --full: 40..-20)")
-    b.add_argument("--realizations", type=int, default=None,
-                   help="noise realisations per level (default 2; --full: 10)")
+    b.add_argument("--realizations", type=cli_number("realizations"), default=None,
+                   help=ranged("realizations", "noise realisations per level (default 2; --full: 10)"))
     b.add_argument("--full", action="store_true", help="the paper's grid: 61 SNR levels x 10 realisations")
     b.add_argument("--preset", default="default", help="training preset of the neural methods: default or paper")
     b.add_argument("--executor", choices=["local", "ray"], default=None,
@@ -184,10 +204,12 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     b.add_argument("--address", default=None,
                    help="Ray cluster to run on, e.g. auto or ray://head:10001 (default: $RAY_ADDRESS when set); "
                         "see docs/cluster.md")
-    b.add_argument("--seed", type=int, default=0, help=f"base seed of every dataset, fit and validation case, "
+    b.add_argument("--seed", type=cli_number("seed"), default=0, help=f"base seed of every dataset, fit and validation case, "
                                                        f"0 ... {MAX_SEED} (default 0)")
-    b.add_argument("--workers", type=int, default=None, help="parallel workers (default: the CPU count)")
-    b.add_argument("--forward-cases", type=int, default=None, help="validation cases per model (default 2; --full: 10)")
+    b.add_argument("--workers", type=cli_number("workers"), default=None,
+                   help=ranged("workers", "parallel workers (default: the CPU count)"))
+    b.add_argument("--forward-cases", type=cli_number("forward_cases"), default=None,
+                   help=ranged("forward_cases", "validation cases per model (default 2; --full: 10)"))
     b.add_argument("--skip", default="", help="side studies to leave out: forward,lyapunov,miw,sensitivity,appendix-f")
     b.add_argument("--retry-failed", action="store_true", help="also rerun jobs stored as failed")
     b.add_argument("--variant", choices=["paper", "scripts"], default="paper",

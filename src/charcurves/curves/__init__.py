@@ -14,6 +14,7 @@ from ._base import normalise_symmetry as normalise_symmetry
 from ._base import register_curve as register_curve
 from ._expr import ALLOWED_FUNCS as ALLOWED_FUNCS
 from ._expr import expression_cost_problem as expression_cost_problem
+from ._expr import expression_shape_problem as expression_shape_problem
 from ._expr import first_disallowed_token as first_disallowed_token
 from ._expr import parse_basis_function as parse_basis_function
 from ._fitted import BasisFittedCurve as BasisFittedCurve

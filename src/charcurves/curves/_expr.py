@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["ALLOWED_FUNCS", "first_disallowed_token", "expression_cost_problem", "parse_basis_function",
-           "monomial_power"]
+__all__ = ["ALLOWED_FUNCS", "first_disallowed_token", "expression_cost_problem", "expression_shape_problem",
+           "parse_basis_function", "monomial_power"]
 
 ALLOWED_FUNCS = ("sin", "cos", "tanh", "exp", "log", "sqrt", "sign", "Abs", "atan", "sinh", "cosh", "tan")
 
@@ -104,10 +104,14 @@ def parse_basis_function(text: str):
                                                                 "Rational": sp.Rational, "Symbol": sp.Symbol},
                           transformations=standard_transformations, evaluate=True)
     except Exception as exc:  # sympy raises many types for bad syntax
-        raise ConfigError(f"cannot parse basis function {text!r} ({type(exc).__name__}); "
+        shown = repr(text) if len(text) <= 60 else f"{text[:57]!r}... ({len(text)} characters)"
+        raise ConfigError(f"cannot parse basis function {shown} ({type(exc).__name__}); "
                           "write an expression of z such as 'z**3'") from None
     if not isinstance(expr, sp.Expr):
         raise ConfigError(f"basis function {text!r} is not an expression of z")
+    if expr.has(sp.I, sp.zoo, sp.oo, sp.nan):  # sqrt(-1), 1/0: no real, finite column
+        raise ConfigError(f"basis function {text[:60]!r} has a value that is not a finite real number (division by "
+                          "zero, sqrt or log of a negative number?); write a real closed form such as 'z**3'")
     extra = expr.free_symbols - {z}
     if extra:
         raise ConfigError(
@@ -149,6 +153,9 @@ def expression_cost_problem(text: str) -> str | None:
         tree = ast.parse(text.replace("^", "**"), mode="eval")
     except (SyntaxError, ValueError, RecursionError, MemoryError):
         return None  # not Python syntax: the token check of the curve parser refuses it with its own message
+    shape = _shape_problem(tree)
+    if shape:
+        return shape
     for node in ast.walk(tree):
         if isinstance(node, ast.Constant) and isinstance(node.value, (int, float, complex)):
             digits = sum(ch.isdigit() for ch in repr(node.value))
@@ -166,17 +173,120 @@ def expression_cost_problem(text: str) -> str | None:
     return None
 
 
-def _power_growth(node) -> float:
+#: bounds on the shape of an expression (issue 50: deep nesting ended in RecursionError, a product of
+#: sums in an equation expanded for minutes): nesting of different operations and calls, AST nodes,
+#: and the number of terms the fully expanded expression can have before like terms are collected
+MAX_NESTING = 30
+MAX_NODES = 1500
+MAX_EXPANDED_TERMS = 10_000
+
+
+def _post_order(tree):
+    """The nodes of ``tree`` children first, without recursion (deep trees stay safe)."""
+    import ast
+
+    out, stack = [], [(tree, False)]
+    while stack:
+        node, done = stack.pop()
+        if done:
+            out.append(node)
+            continue
+        stack.append((node, True))
+        stack.extend((child, False) for child in ast.iter_child_nodes(node))
+    return out
+
+
+def _op_kind(node) -> str | None:
+    import ast
+
+    if isinstance(node, ast.BinOp):
+        return "add" if isinstance(node.op, (ast.Add, ast.Sub)) else "mul" if isinstance(node.op, (ast.Mult, ast.Div)) \
+            else "pow"
+    if isinstance(node, ast.UnaryOp):
+        return "unary"
+    return None
+
+
+def _shape_problem(tree) -> str | None:
+    import ast
+
+    _MARKERS = (ast.expr_context, ast.operator, ast.unaryop, ast.cmpop, ast.boolop)  # not parts of their own
+
+    nodes = [n for n in _post_order(tree) if not isinstance(n, _MARKERS)]
+    if len(nodes) > MAX_NODES:
+        return f"has {len(nodes)} parts, more than {MAX_NODES}"
+    depth: dict[int, int] = {}
+    terms: dict[int, float] = {}
+    worst = 1.0
+    for node in nodes:
+        kids = [k for k in ast.iter_child_nodes(node) if not isinstance(k, _MARKERS)]
+        kind = _op_kind(node)
+        # a chain of the same operation (a + b + c, a*b*c) is one level, as sympy flattens it
+        depth[id(node)] = max([depth[id(k)] + (0 if kind is not None and _op_kind(k) == kind and kind != "pow"
+                                                else 1) for k in kids], default=0)
+        if isinstance(node, ast.BinOp):
+            a, b = terms[id(node.left)], terms[id(node.right)]
+            if isinstance(node.op, (ast.Add, ast.Sub)):
+                n = a + b
+            elif isinstance(node.op, ast.Mult):
+                n = a * b
+            elif isinstance(node.op, ast.Pow) and isinstance(node.right, ast.Constant) \
+                    and isinstance(node.right.value, int) and 0 <= node.right.value <= 1000:
+                n = a ** node.right.value if a < 1e6 else float("inf")
+            else:
+                n = a
+        elif isinstance(node, (ast.UnaryOp, ast.Expression)):
+            n = terms[id(kids[0])] if kids else 1.0
+        else:
+            n = 1.0  # a number, a name, a call (its arguments are counted on their own)
+        n = min(n, 1e300)
+        terms[id(node)] = n
+        worst = max(worst, n)
+    top = depth[id(tree.body)] if isinstance(tree, ast.Expression) else depth[id(tree)]
+    if top > MAX_NESTING:
+        return f"nests operations {top} deep, more than {MAX_NESTING}"
+    if worst > MAX_EXPANDED_TERMS:
+        return f"expands to more than {MAX_EXPANDED_TERMS} terms (about {worst:.3g})"
+    return None
+
+
+def expression_shape_problem(text: str) -> str | None:
+    """Why ``text`` is too large to expand and evaluate safely, or None: more than
+    :data:`MAX_NESTING` levels of nested operations, :data:`MAX_NODES` parts, or a product of sums
+    whose expansion has more than :data:`MAX_EXPANDED_TERMS` terms. Only parsed by ``ast``.
+
+    Examples
+    --------
+    >>> from charcurves.curves import expression_shape_problem
+    >>> expression_shape_problem("(z + 1)**3 * tanh(50*z)") is None
+    True
+    >>> expression_shape_problem("*".join(["(z + 1)"] * 20))
+    'expands to more than 10000 terms (about 1.05e+06)'
+    """
+    import ast
+
+    try:
+        tree = ast.parse(text.replace("^", "**"), mode="eval")
+    except (SyntaxError, ValueError, RecursionError, MemoryError):
+        return None  # not Python syntax: the caller's parser refuses it with its own message
+    return _shape_problem(tree)
+
+
+def _power_growth(tree) -> float:
     """Largest product of exponent sizes along a chain of powers nested in bases, e.g. ((a**3)**4) -> 12."""
     import ast
 
-    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
-        size = 1.0
-        for n in ast.walk(node.right):
-            if isinstance(n, ast.Constant) and isinstance(n.value, (int, float)):
-                size *= max(1.0, abs(float(n.value)))
-        return size * _power_growth(node.left)
-    return max([_power_growth(child) for child in ast.iter_child_nodes(node)], default=1.0)
+    growth: dict[int, float] = {}
+    for node in _post_order(tree):
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
+            size = 1.0
+            for n in ast.walk(node.right):
+                if isinstance(n, ast.Constant) and isinstance(n.value, (int, float)):
+                    size = min(size * max(1.0, abs(float(n.value))), 1e300)
+            growth[id(node)] = min(size * growth[id(node.left)], 1e300)
+        else:
+            growth[id(node)] = max([growth[id(c)] for c in ast.iter_child_nodes(node)], default=1.0)
+    return growth[id(tree)]
 
 
 def monomial_power(text: str) -> int | None:

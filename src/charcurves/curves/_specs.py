@@ -299,8 +299,10 @@ class Basis(LinearCurve):
 
             z = sp.Symbol("z")
             exprs = [parse_basis_function(f) for f in key]
-            funcs = [sp.lambdify(z, e, modules="torch") for e in exprs]
-            derivs = [sp.lambdify(z, _derivative(e, z), modules="torch") for e in exprs]
+            # numbers as floats first: torch's functions take no Python numbers (sin(1)*z failed), and a
+            # huge integer literal becomes inf (refused by the fit's column check) instead of an overflow
+            funcs = [sp.lambdify(z, _numeric(e), modules="torch") for e in exprs]
+            derivs = [sp.lambdify(z, _numeric(_derivative(e, z)), modules="torch") for e in exprs]
             pinned = all(sp.simplify(e.subs(z, 0)) == 0 for e in exprs)
             cache = (key, funcs, derivs, pinned)
             self._cache = cache
@@ -434,6 +436,20 @@ class Symbolic(AbstractCurve):
 
     def fitted(self, *args, **kwargs):  # pragma: no cover - the symbolic fitter builds its curves itself
         raise ConfigError("Symbolic curves are built by the symbolic-regression fitter")
+
+
+def _numeric(expr):
+    """``expr`` with functions of numbers (``sin(1)``) and integers beyond 2**53 as floats: torch's
+    functions take no Python numbers, and a huge integer would overflow torch (it becomes inf, which
+    the fit's column check refuses); every other number is left exactly as parsed."""
+    import sympy as sp
+
+    def numeric(a) -> bool:
+        if isinstance(a, (sp.Function, sp.Pow)) and not a.free_symbols:  # sin(1), sqrt(2)
+            return True
+        return isinstance(a, sp.Rational) and (abs(a.p) > 2**53 or a.q > 2**53)
+
+    return expr.replace(numeric, lambda a: sp.Float(a.evalf(17), 17))
 
 
 def _derivative(expr, z):

@@ -43,8 +43,9 @@ def check_hold(hold: str, substeps: int) -> None:
     """
     if hold not in HOLDS:
         raise ConfigError(f"unknown input hold {hold!r}; choose one of {', '.join(HOLDS)}")
-    if not isinstance(substeps, (int, np.integer)) or isinstance(substeps, bool) or substeps < 1:
-        raise ConfigError(f"substeps must be a positive integer (RK4 steps per sample), got {substeps!r}")
+    from .._bounds import check_number
+
+    check_number("substeps", substeps, label="substeps (--refine-substeps, validate --substeps)")
 
 
 def _upsample_bandlimited(u: np.ndarray, r: int) -> np.ndarray:

@@ -37,7 +37,11 @@ def _check_snr(snr_db: Any) -> float:
         raise ConfigError("snr_db is NaN; pass a number of decibels, e.g. snr_db=20, or inf for no noise")
     if value == -math.inf:
         raise ConfigError("snr_db is -inf (infinitely large noise); pass a finite SNR or inf for no noise")
-    return value
+    if value == math.inf:
+        return value
+    from .._bounds import check_number
+
+    return check_number("snr_db", value)
 
 
 def _check_reference(reference: Any) -> str:

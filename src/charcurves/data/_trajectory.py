@@ -9,7 +9,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from .._errors import DataError
+from .._errors import ConfigError, DataError
 from ._quality import check_rows, gap_warnings, signal_warnings
 
 __all__ = ["Trajectory", "MultiTrajectory", "MIN_SAMPLES", "MAX_MAGNITUDE"]
@@ -210,15 +210,12 @@ class Trajectory(_SampledRecord):
         if time_col is not None and time_col in columns:
             t = need(time_col, "time")
         elif sample_rate is not None:
+            from .._bounds import check_number
+
             try:
-                rate = float(sample_rate)
-            except (TypeError, ValueError):
-                rate = float("nan")
-            if not (np.isfinite(rate) and rate > 0):
-                raise DataError(
-                    f"sample rate must be a positive number of Hz, got {sample_rate!r}; "
-                    "give it as e.g. --sample-rate 1000"
-                )
+                rate = check_number("sample_rate", sample_rate, label="the sample rate (--sample-rate)")
+            except ConfigError as exc:
+                raise DataError(str(exc)) from None
             t = np.arange(n_all) / rate
         else:
             if time_col is None:

@@ -29,6 +29,7 @@ from collections.abc import Sequence
 from typing import Any
 
 
+from .._bounds import check_number
 from .._errors import ConfigError
 from ._run_files import BenchmarkResult as BenchmarkResult
 from ._results import BENCHMARK_TAG, MIW_METHODS, RESULT_COLUMNS, _all_methods, _write_csv, empty_results_frame
@@ -90,6 +91,8 @@ def parse_snr_list(text: str) -> tuple[float, ...]:
             raise ConfigError(f"--snr must be comma-separated dB values such as 40,20,0, got {text!r}") from None
         if math.isnan(v) or v == -math.inf:
             raise ConfigError(f"--snr values must be finite dB levels or inf, got {p!r}")
+        if v != math.inf:
+            check_number("snr_db", v, label="each --snr level")
         out.append(v)
     return tuple(dict.fromkeys(out))
 
@@ -249,9 +252,15 @@ def run_benchmark(out_dir: str | os.PathLike, *, systems: Sequence[str] = SYSTEM
     if snr_db is not None:
         sizes["snr_db"] = tuple(float(s) for s in snr_db)
     if realizations is not None:
-        if isinstance(realizations, bool) or int(realizations) < 1:
-            raise ConfigError(f"realizations must be a positive integer, got {realizations!r}")
+        check_number("realizations", realizations, label="realizations (--realizations)")
         sizes["realizations"] = sizes["appendix_f_realizations"] = int(realizations)
+    if workers is not None:
+        check_number("workers", workers, label="workers (--workers)")
+    if forward_cases is not None:
+        check_number("forward_cases", forward_cases, label="forward_cases (--forward-cases)")
+    for level in sizes["snr_db"] if snr_db is not None else ():
+        if level != math.inf:
+            check_number("snr_db", level, label="each snr_db level (--snr)")
     from ..symbolic import POST_SR_OPTIONS
 
     # what post-SR searches with (the quick grid's budget, else the post-SR defaults), for the report

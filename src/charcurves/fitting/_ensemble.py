@@ -83,9 +83,13 @@ def check_band_options(n, level: float) -> None:
     ...     print(str(exc)[:55])
     an ensemble needs at least 3 members to measure a sprea
     """
+    from .._bounds import check_number
+
     _check_members(n)
+    check_number("bands", n, label="the ensemble size (--bands)")
     if not isinstance(level, (int, float)) or not (0.0 < float(level) < 1.0):
         raise ConfigError(f"band level must be between 0 and 1 (e.g. 0.95), got {level!r}")
+    check_number("bands_level", level, label="the band level (--bands-level)")
 
 
 def bootstrap_records(record, model, n: int, *, random_state: int = 0) -> list:

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from .._bounds import check_number
 from .._errors import ConfigError, NotFittedError
 from ._methods import METHODS, check_method_options, method_curve, parse_basis_option, parse_symmetry
 from ._model import FittedModel
@@ -210,11 +211,20 @@ class CharacteristicCurves:
 
         if self.method is not None and self.method not in METHODS:
             raise ConfigError(f"unknown method {self.method!r}; choose one of {', '.join(METHODS)}")
-        if not is_int(self.random_state) or not 0 <= self.random_state <= MAX_SEED:
-            raise ConfigError(f"the seed (random_state) must be a non-negative integer up to {MAX_SEED}, got "
-                              f"{self.random_state!r}; give e.g. --seed 0")
-        if self.threads is not None and (not is_int(self.threads) or self.threads < 1):
-            raise ConfigError(f"threads must be a positive integer, got {self.threads!r}; give e.g. --threads 1")
+        check_number("seed", self.random_state, label="the seed (random_state, --seed)")
+        if self.threads is not None:
+            check_number("threads", self.threads)
+        for name in ("free_gain", "exclude_sticking"):  # free_gain="False" would turn the gain on
+            value = getattr(self, name)
+            if not isinstance(value, (bool, np.bool_)):
+                raise ConfigError(f"{name} must be True or False, got {value!r}; give e.g. {name}=True")
+        if self.post_sr is not None and not isinstance(self.post_sr, (bool, np.bool_)):
+            raise ConfigError(f"post_sr must be True, False or None, got {self.post_sr!r}")
+        if self.hidden is not None and (isinstance(self.hidden, (str, bytes)) or not hasattr(self.hidden, "__iter__")
+                                        or not all(is_int(h) and 1 <= h <= 4096 for h in self.hidden)
+                                        or not 1 <= len(list(self.hidden)) <= 16):
+            raise ConfigError(f"hidden must be a sequence of 1 to 16 layer widths, integers from 1 to 4096, got "
+                              f"{self.hidden!r}; give e.g. hidden=(16, 16)")
         try:
             gain = float(self.gain)
         except (TypeError, ValueError):
@@ -229,6 +239,7 @@ class CharacteristicCurves:
             if not np.isfinite(snr) or isinstance(self.snr_db, bool):
                 raise ConfigError(f"snr_db must be a finite number of dB, got {self.snr_db!r}; give e.g. snr_db=20 "
                                   "(--snr 20), or leave it out to estimate the noise floor from the record")
+            check_number("snr_db", snr)
         if self.derivatives is not None and self.differentiator is not None and self.derivatives != self.differentiator:
             raise ConfigError("give the differentiator once: derivatives= is the older name of differentiator=")
         self._check_basis_cost()

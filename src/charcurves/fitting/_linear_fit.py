@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import ConfigError, DataError
+from .._errors import ConfigError, DataError, FitError
 from ..templates import EquationTemplate
 from ._gradient_fit import finish_model
 from ._sr3 import constrained_sr3
@@ -104,12 +104,22 @@ def fit_linear(record, template: EquationTemplate, reps: dict, *, method: str, m
         c, h = rep.scaling(u_raw, None)
         scalings[nm] = (c, h)
         pinned[nm] = rep.symmetry_name == "odd" if nm in carriers else bool(rep.pinned_at_zero)
-        phi = _features_numpy(rep, (u_raw - c) / h)
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                phi = _features_numpy(rep, (u_raw - c) / h)
+            except (TypeError, ValueError, RuntimeError, OverflowError) as exc:  # torch on an odd closed form
+                funcs = rep.function_list() if hasattr(rep, "function_list") else None
+                raise ConfigError(f"the curve {nm} ({', '.join(funcs)[:80] if funcs else type(rep).__name__}) cannot "
+                                  f"be evaluated on the record ({type(exc).__name__}: {str(exc)[:80]}); write plain "
+                                  "closed forms of z such as 'z**3' or 'tanh(50*z)'") from None
+        _check_columns(rep, nm, template, phi, u_raw)
         for k in range(phi.shape[1]):
             cols.append(D["mult"][nm] * np.tile(phi[:, k], E))
             owners.append((nm, k))
     template.check_identifiable(pinned)
     for s, sig in D["scalars"].items():
+        _check_signal(f"the signal multiplying the scalar {s}", sig, template)
         cols.append(sig)
         owners.append(("__scalar", s))
     # constants: a Polynomial carries one on the slots that keep one after the gauge (pivot slots
@@ -140,9 +150,16 @@ def fit_linear(record, template: EquationTemplate, reps: dict, *, method: str, m
             owners.append(("__gain", 0))
             target = D["F"] if force_side else -D["y"]
         A = np.column_stack(cols)[rows]
+        _check_signal("the known part of the equation (the terms without unknowns, or the forcing)", target[rows],
+                      template)
         norms = np.linalg.norm(A, axis=0)
         norms[norms == 0] = 1.0
-        coef_scaled, *_ = np.linalg.lstsq(A / norms, target[rows], rcond=None)
+        try:
+            coef_scaled, *_ = np.linalg.lstsq(A / norms, target[rows], rcond=None)
+        except np.linalg.LinAlgError as exc:  # any failure left after the column checks: one line, not a traceback
+            raise FitError(f"the least-squares fit of {template.equation} failed ({exc}); the columns of its curves "
+                           "and scalars are too close to dependent or too large: simplify the basis or the equation"
+                           ) from None
         coef = coef_scaled / norms
         info["condition_number"] = float(np.linalg.cond(A / norms))
         gain = template.gain
@@ -178,6 +195,41 @@ def fit_linear(record, template: EquationTemplate, reps: dict, *, method: str, m
     _describe(info, reps, curves, scalings, template)
     info["train_seconds"] = time.perf_counter() - t0
     return finish_model(template, method, curves, gain, offs, scalars, record, info, mask)
+
+
+#: largest magnitude a design column may reach (the record's own values are bounded the same way)
+MAX_COLUMN = 1e100
+
+
+def _check_columns(rep, name: str, template, phi: np.ndarray, u: np.ndarray) -> None:
+    """Refuse a curve whose features are not finite or beyond :data:`MAX_COLUMN` on the record, naming the
+    function (a Basis) and where it fails: ``exp(exp(z))``, ``z/0`` or ``log(z)`` ended in "SVD did not
+    converge" before (issue 50)."""
+    funcs = rep.function_list() if hasattr(rep, "function_list") else None
+    arg = template.arguments.get(name, "z") if isinstance(getattr(template, "arguments", None), dict) else "z"
+    for k in range(phi.shape[1]):
+        col = phi[:, k]
+        bad = ~np.isfinite(col) | (np.abs(np.nan_to_num(col, nan=0.0, posinf=np.inf, neginf=np.inf)) > MAX_COLUMN)
+        if not bad.any():
+            if funcs and k < len(funcs) and not col.any():  # a zero column: nothing to fit, a singular problem
+                raise ConfigError(f"basis function {funcs[k]!r} of {name} is 0 on every sample of the record; "
+                                  "drop it or give a function of z that varies, e.g. 'z**3'")
+            continue
+        i = int(np.argmax(bad))
+        what = f"basis function {funcs[k]!r} of {name}" if funcs and k < len(funcs) else f"feature {k} of {name}"
+        kind = "is not finite" if not np.isfinite(col[i]) else f"exceeds {MAX_COLUMN:g} in size"
+        raise ConfigError(f"{what} {kind} on the record (at {arg} = {float(u[i]):.4g}, {int(bad.sum())} of "
+                          f"{bad.size} samples; {arg} spans {float(np.min(u)):.4g} ... {float(np.max(u)):.4g}); "
+                          "use functions that stay finite and moderate there, e.g. 'tanh(z)' or 'z**3'")
+
+
+def _check_signal(what: str, sig: np.ndarray, template) -> None:
+    sig = np.asarray(sig, dtype=float)
+    bad = ~np.isfinite(sig) | (np.abs(np.nan_to_num(sig, nan=0.0)) > MAX_COLUMN)
+    if bad.any():
+        raise ConfigError(f"{what} in {template.equation} is not finite or exceeds {MAX_COLUMN:g} at "
+                          f"{int(bad.sum())} of {bad.size} samples; write terms that stay finite on the record "
+                          "(log and sqrt of positive signals, no division by a signal that crosses 0)")
 
 
 def constant_carriers(template, reps) -> set[str]:

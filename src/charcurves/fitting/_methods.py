@@ -99,6 +99,9 @@ def parse_symmetry(sym, curve_names=("f1", "f2")) -> dict[str, str]:
                 if "=" not in part:
                     raise ConfigError(f"symmetry {part.strip()!r} needs the form CURVE=odd|even|none, e.g. f1=odd,f2=odd")
                 k, v = part.split("=", 1)
+                if k.strip() in items:  # the last one won silently before (issue 50)
+                    raise ConfigError(f"symmetry names {k.strip()} twice ({sym.strip()!r}); give each curve once, "
+                                      "e.g. f1=odd,f2=odd")
                 items[k.strip()] = v.strip()
     elif isinstance(sym, dict):
         items = {str(k): str(v) for k, v in sym.items()}
@@ -147,6 +150,9 @@ def parse_basis_option(text, curve_names=("f1", "f2"), *, family: str = "separab
             if "=" not in part:
                 raise ConfigError(f"basis part {part.strip()!r} has no '='; write e.g. \"f1=z; f2=z, z**3\"")
             name, funcs = part.split("=", 1)
+            if name.strip() in out:  # the last one won silently before (issue 50)
+                raise ConfigError(f"basis names {name.strip()} twice; give each curve's functions once, e.g. "
+                                  "\"f1=z; f2=z, z**3\"")
             out[name.strip()] = [f.strip() for f in funcs.split(",") if f.strip()]
     unknown = set(out) - set(curve_names)
     if unknown:
@@ -154,9 +160,14 @@ def parse_basis_option(text, curve_names=("f1", "f2"), *, family: str = "separab
     missing = [c for c in curve_names if not out.get(c)]
     if missing:
         raise ConfigError(f"no basis functions for {missing}; write e.g. \"f1=z; f2=z, z**3\"")
-    for fs in out.values():
+    for name, fs in out.items():
+        seen: dict = {}
         for f in fs:
-            parse_basis_function(f)
+            expr = parse_basis_function(f)
+            if expr in seen:  # two equal columns: a singular least-squares problem
+                raise ConfigError(f"basis of {name} lists {seen[expr]!r} and {f!r}, the same function twice; "
+                                  "give each function once")
+            seen[expr] = f
     return out
 
 

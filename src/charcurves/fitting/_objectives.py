@@ -143,8 +143,10 @@ class OutputError(_Objective):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
                 raise ConfigError(f"OutputError {name} must be an integer >= {low}, got {value!r}")
 
+        from .._bounds import check_number
+
         if self.segment_length is not None:
-            pos_int("segment_length", self.segment_length, 16)
+            check_number("segment_length", self.segment_length, label="OutputError segment_length (--segment-length)")
         if self.hold not in HOLDS:
             raise ConfigError(f"unknown input hold {self.hold!r}; choose one of {', '.join(HOLDS)}")
         check_hold(self.hold, 1 if self.substeps is None else self.substeps)

@@ -151,9 +151,14 @@ def select_family(trajectories: Sequence, families: Sequence[str] = DEFAULT_FAMI
     from ..fitting import CharacteristicCurves
     from ..fitting import fit_ensembles
 
+    from .._bounds import check_number
+
     trajectories = list(trajectories)
     if not trajectories:
         raise DataError("select needs at least one record")
+    check_number("members", n_members, label="n_members (--members)")
+    if snr_db is not None:
+        check_number("snr_db", snr_db, label="snr_db (--snr)")
     families = [f.strip() for f in families if f and f.strip()]
     if not families:
         raise ConfigError("no candidate family given; e.g. --families separable,position-damping")

@@ -137,6 +137,11 @@ def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_co
     spans = rows or [slice(0, full.n_samples)]
     results, sims = [], []
     for span in spans:
+        beyond = [v for v in (span.start, span.stop) if v is not None and v > full.n_samples]
+        if beyond:  # clamped silently before (issue 50)
+            raise DataError(f"--rows {'' if span.start is None else span.start}:{'' if span.stop is None else span.stop}"
+                            f" goes beyond the file, which has {full.n_samples} rows; choose START:STOP within "
+                            f"0:{full.n_samples}")
         start, stop, _ = span.indices(full.n_samples)
         if stop - start < 16:
             raise DataError(f"--rows {span.start}:{span.stop} selects {max(stop - start, 0)} of the record's "

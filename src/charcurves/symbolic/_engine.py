@@ -182,9 +182,11 @@ class SymbolicRegressionEngine(abc.ABC):
                  population_size: int = DEFAULT_SR_OPTIONS["population_size"],
                  max_size: int = DEFAULT_SR_OPTIONS["max_size"], operators: Sequence[str] = POLY_OPERATORS,
                  selection: str = DEFAULT_SR_OPTIONS["selection"], max_points: int = DEFAULT_SR_OPTIONS["max_points"]):
-        for key, val, lo in (("generations", generations, 1), ("populations", populations, 1),
-                             ("population_size", population_size, 2), ("max_size", max_size, 3),
-                             ("max_points", max_points, 10)):
+        from .._bounds import check_number
+
+        for key, val in (("generations", generations), ("populations", populations), ("max_size", max_size)):
+            check_number(f"sr_{key}", val, label=f"sr option {key} (--sr-{key.replace('_', '-')})")
+        for key, val, lo in (("population_size", population_size, 2), ("max_points", max_points, 10)):
             if isinstance(val, bool) or not isinstance(val, (int, np.integer)) or int(val) < lo:
                 raise ConfigError(f"sr option {key} must be an integer >= {lo}, got {val!r}")
         if selection not in SELECTION_CRITERIA:

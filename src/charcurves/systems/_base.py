@@ -11,6 +11,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from .._bounds import BOUNDS
 from .._errors import CharCurvesError, ConfigError, SimulationError
 from ..data import Trajectory
 
@@ -45,9 +46,13 @@ def sample_times(t_end: Any = None, n_points: Any = None, t_eval: Any = None) ->
     charcurves._errors.ConfigError: n_points must be an integer >= 2, got 1
     """
     if t_eval is None:
+        from .._bounds import check_number
+
         t_end = _real("t_end", t_end, positive=True)
         if isinstance(n_points, bool) or not isinstance(n_points, numbers.Integral) or n_points < 2:
             raise ConfigError(f"n_points must be an integer >= 2, got {n_points!r}")
+        if t_end < BOUNDS["t_end"].low:  # a span of 1e-300 made LSODA step for ever (issue 50)
+            check_number("t_end", t_end, label="t_end (--t-end)")
         if n_points > MAX_SIMULATE_POINTS:  # type: ignore[operator]  # typeshed: numbers.Integral vs int
             raise ConfigError(f"n_points (--n-points) {n_points} is more than the {MAX_SIMULATE_POINTS:,} samples a "
                               f"simulation returns (a CSV of about 0.25 GB); give at most {MAX_SIMULATE_POINTS}")

@@ -49,8 +49,14 @@ def display(sym_name: str) -> str:
 
 def show(expr) -> str:
     """An expression with its internal derivative names as written (``3*x__d2**2`` -> ``3*x''**2``)."""
-    text = str(expr)
-    return re.sub(r"\b(\w+?)__d(\d)\b", lambda m: m.group(1) + "'" * int(m.group(2)), text)
+    text = re.sub(r"\b(\w+?)__d(\d)\b", lambda m: m.group(1) + "'" * int(m.group(2)), str(expr))
+    return text if len(text) <= 120 else text[:100] + f"... ({len(text)} characters)"  # messages stay readable
+
+
+def _short(text: str) -> str:
+    """``text`` quoted, cut to 60 characters (a message stays one readable line)."""
+    t = text.strip()
+    return repr(t) if len(t) <= 60 else f"{t[:57]!r}... ({len(t)} characters)"
 
 
 def parse_side(text: str, where: str):
@@ -58,7 +64,7 @@ def parse_side(text: str, where: str):
     from sympy.core.function import AppliedUndef
     from sympy.parsing.sympy_parser import parse_expr, standard_transformations
 
-    from ..curves import first_disallowed_token
+    from ..curves import expression_shape_problem, first_disallowed_token
 
     def primes(m):
         name, marks = m.group(1), m.group(2)
@@ -101,18 +107,22 @@ def parse_side(text: str, where: str):
         _check_powers(parse_expr(body, local_dict=local,
                                  global_dict={**gdict, "Add": sp.Add, "Mul": sp.Mul, "Pow": sp.Pow},
                                  transformations=standard_transformations, evaluate=False), where)
+        shape = expression_shape_problem(body)
+        if shape:  # before sympy evaluates: products of sums expanded for minutes, nesting recursed (issue 50)
+            raise ConfigError(f"{where}: the side {_short(text)} {shape}; write the terms out plainly, e.g. "
+                              "\"x'' + a1*x' + f1(x) = F\"")
         expr = parse_expr(body, local_dict=local, global_dict=dict(gdict), transformations=standard_transformations,
                           evaluate=True)
     except ConfigError:
         raise
     except Exception as exc:  # sympy raises many types for bad syntax; none may escape as a traceback
-        raise ConfigError(f"{where}: cannot parse {text.strip()!r} ({type(exc).__name__}); "
+        raise ConfigError(f"{where}: cannot parse {_short(text)} ({type(exc).__name__}); "
                           "write e.g. \"x'' + a1*x' + f1(x) = F\"") from None
     if not isinstance(expr, sp.Expr):
         raise ConfigError(f"{where}: {text.strip()!r} is not an expression")
     if expr.has(sp.zoo, sp.oo, sp.nan, sp.I) or any(
             not (n.is_real and n.is_finite and abs(float(n)) < 1e300) for n in expr.atoms(sp.Number)):
-        raise ConfigError(f"{where}: {text.strip()!r} contains a value that is not a finite real number "
+        raise ConfigError(f"{where}: {_short(text)} contains a value that is not a finite real number "
                           "(division by zero, log(0), sqrt of a negative number?); write real, finite terms")
     for n in names:
         if CURVE.match(n) and not any(isinstance(a, AppliedUndef) and a.func.__name__ == n
