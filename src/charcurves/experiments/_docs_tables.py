@@ -1,4 +1,5 @@
-"""The headline tables of docs/benchmark.md, rendered from the committed results folders, and the
+"""The headline tables of docs/benchmark.md (and, through ``_records_tables``, of the measured-records,
+training-defaults and Silverbox pages), rendered from the committed results folders, and the
 page's table markers filled with them (``python benchmarks/render_docs.py``), so that a rerun updates
 the page and a number on it cannot be typed.
 
@@ -18,6 +19,7 @@ from collections.abc import Mapping
 
 from . import _paper_values as paper
 from ._appendix_f import _a_rows, protocol_frames
+from ._records_tables import records_tables
 from ._report_inputs import committed_csv, read_results_csv
 from ._tables import BIAS_LIMITED, a_fit_table, performance_table, tsep_failure_snr
 
@@ -139,7 +141,10 @@ def docs_tables(results_root: str | os.PathLike) -> dict[str, str]:
     """``{marker name: markdown table}`` for every table whose committed results are in ``results_root``
     (``benchmarks/results``): ``full-duffing``, ``full-stick-slip``, ``scripts-duffing``,
     ``scripts-stick-slip`` (the main sweeps' A, performance and cost), ``paper-cpu`` (the `paper`
-    preset against the default) and ``appendix-f`` (noise on x, both protocols).
+    preset against the default) and ``appendix-f`` (noise on x, both protocols); and those of the measured-records,
+    training-defaults and Silverbox pages from ``state_noise.json`` and ``long_records.json``
+    (``state-noise-duffing``, ``state-noise-stick-slip``, ``state-noise-families``, ``state-noise-cost``,
+    ``long-records``, ``silverbox-cost``).
 
     Examples
     --------
@@ -169,6 +174,7 @@ def docs_tables(results_root: str | os.PathLike) -> dict[str, str]:
         protocols = protocol_frames(appendix)
         if protocols:
             out["appendix-f"] = appendix_f_table(protocols)
+    out.update(records_tables(root))
     return out
 
 
