@@ -441,9 +441,9 @@ class _Context:
 
 def _write_csv(df, path: str) -> None:
     cols = [c for c in RESULT_COLUMNS if c in df.columns]
-    tmp = f"{path}.tmp{os.getpid()}"
-    df[cols].to_csv(tmp, index=False)
-    os.replace(tmp, path)
+    from ..io import atomic_write_bytes
+
+    atomic_write_bytes(path, df[cols].to_csv(index=False).encode("utf-8"))
 
 
 from ._report_inputs import build_report as build_report  # noqa: E402 - re-exported (it was defined here)
