@@ -82,6 +82,39 @@ def sigterm_as_interrupt():
 
 
 @contextlib.contextmanager
+def first_interrupt_only():
+    """While a fit runs: the first Ctrl-C or SIGTERM raises KeyboardInterrupt (training stops and
+    keeps its best weights, later stages are skipped), a second one is held (one line says so) so
+    that it cannot lose the model the first one kept while that model is finished and written; a
+    third quits at once (exit 130) without writing it. Main thread only."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    count = [0]
+
+    def handler(signum, frame):
+        count[0] += 1
+        if count[0] == 1:
+            raise KeyboardInterrupt
+        if count[0] == 2:
+            print("charcurves: interrupted again; still keeping the best model so far (a third interrupt quits at "
+                  "once, without writing it)", file=sys.stderr, flush=True)
+            return
+        print("charcurves: interrupted a third time; quit without writing the model", file=sys.stderr, flush=True)
+        os._exit(130)
+
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+@contextlib.contextmanager
 def signals_deferred():
     """Hold Ctrl-C and SIGTERM while results are written (so files are never left half-done); yields
     a flag that is true when one arrived, for the caller to honour afterwards."""

@@ -6,7 +6,8 @@ import os
 import sys
 import time
 
-from ._common import FIT_OUTPUTS, check_out_dir, held_out_dir, make_out_dir, say, signals_deferred, warn
+from ._common import (FIT_OUTPUTS, check_out_dir, first_interrupt_only, held_out_dir, make_out_dir, say,
+                      signals_deferred, warn)
 
 __all__ = ["cmd_fit", "cmd_demo", "source_path", "time_column"]
 
@@ -60,7 +61,9 @@ def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_g
         equation=equation, objective=objective or "auto", snr_db=snr,
     )
     check_out_dir(out_dir)  # before the fit: a bad --out must not cost a long run
-    with held_out_dir(out_dir):  # one writer at a time: a second fit into the same --out is refused
+    # one writer at a time (a second fit into the same --out is refused); a second interrupt never
+    # loses what the first kept
+    with held_out_dir(out_dir), first_interrupt_only():
         t0 = time.perf_counter()
         if bands is not None:
             from ..fitting import check_band_options
