@@ -244,6 +244,7 @@ def check_model_digest(doc: dict, jpath: str = _MODEL_JSON) -> None:
     except (TypeError, ValueError):
         same = False
     if not same:
-        detail = f"{missing[0]!r} is missing" if missing else "its values no longer match model_sha256"
-        raise ModelFileError(f"{jpath!r} was modified after it was saved ({detail}: a value such as the gain was "
-                             "edited); refusing to load it, re-fit the model or restore the file as saved")
+        detail = (f"{missing[0]!r}, covered by model_sha256, was removed" if missing
+                  else "its values no longer match model_sha256, e.g. an edited gain")
+        raise ModelFileError(f"{jpath!r} was modified after it was saved ({detail}); refusing to load it, re-fit "
+                             "the model or restore the file as saved")
