@@ -426,3 +426,28 @@ def test_ctrl_c_stops_a_search_running_in_cpp_at_once():
         while searches_running() and time.monotonic() < deadline:  # let the abandoned search end
             time.sleep(0.1)
     assert searches_running() == 0
+
+
+def test_a_benchmark_interrupted_after_its_sweep_names_the_stored_rows(tmp_path, capsys, monkeypatch):
+    """Before: "interrupted before a model was trained; nothing was kept", though the rows were stored.
+    The interrupt is raised where Ctrl-C would land in the side studies after the main sweep."""
+    import sqlite3
+
+    from charcurves.experiments import _side_studies
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(_side_studies, "lyapunov", interrupted)
+    out = tmp_path / "bench"
+    capsys.readouterr()
+    code = main(["benchmark", "--out", str(out), "--systems", "duffing", "--methods", "parametric", "--snr", "40",
+                 "--realizations", "1", "--workers", "1", "--forward-cases", "0",
+                 "--skip", "forward,miw,sensitivity,appendix-f", "--quiet"])
+    err = capsys.readouterr().err
+    store = out / "results.sqlite"
+    with sqlite3.connect(store) as con:
+        n_rows = con.execute("SELECT COUNT(*) FROM results").fetchone()[0]
+    assert code == 130 and n_rows == 1
+    assert err == (f"charcurves: interrupted; the rows finished so far are stored in {store}; rerun the same command "
+                   "to resume (or add --report-only to build the report from them)\n")

@@ -57,7 +57,8 @@ def cmd_report(a) -> int:
     from ..io import check_output_file
     from ._common import refuse_inputs_among_outputs
 
-    check_output_file(out, "--out")  # a device, FIFO or socket is refused; a link is written through
+    if a.out is not None:  # a device, FIFO or socket is refused, a link written through (the default too, on writing)
+        check_output_file(out, "--out")
     folder = a.model if os.path.isfile(os.path.join(a.model, "model.json")) else os.path.join(a.model, "model")
     reads = {"model file": os.path.join(folder, "model.json"), "arrays file": os.path.join(folder, "arrays.safetensors"),
              "result file": os.path.join(os.path.dirname(os.path.abspath(folder)), "result.json")}
