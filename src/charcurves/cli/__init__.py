@@ -48,6 +48,11 @@ def _main(argv: list[str] | None) -> int:
         print(f"charcurves: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
+        if argv is None:  # the program ends now: a second signal must not kill it (exit 143) before it says why
+            import signal
+
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, signal.SIG_IGN)
         from ..experiments._sweep import SweepInterrupted
 
         if isinstance(exc, SweepInterrupted):  # benchmark: finished rows are stored, a rerun resumes
@@ -66,6 +71,8 @@ def _main(argv: list[str] | None) -> int:
 def _interrupted_message(args) -> str:
     """What an interrupt that ended a command outside its own handling kept."""
     command = getattr(args, "command", None)
+    if command is None:
+        return "interrupted before the command started; nothing was written"
     if command in ("fit", "demo"):
         return "interrupted before a model was trained; nothing was kept"
     if command == "benchmark":
@@ -74,7 +81,7 @@ def _interrupted_message(args) -> str:
             return (f"interrupted; the rows finished so far are stored in {store}; rerun the same command to resume "
                     f"(or add --report-only to build the report from them)")
         return "interrupted before any job finished; nothing was kept"
-    return f"interrupted; {command or 'the command'} did not finish and wrote nothing more"
+    return f"interrupted; {command} did not finish and wrote nothing more"
 
 
 def _run(argv, state: dict) -> int:

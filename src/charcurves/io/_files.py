@@ -71,9 +71,9 @@ def special_file_kind(mode: int) -> str | None:
 
 def output_target(path: str | os.PathLike, label: str = "the output") -> str:
     """The regular file that writing ``path`` replaces: ``path`` itself, or, for a symbolic link,
-    the file it points to (a link is written through and stays a link). A directory, device, FIFO or
-    socket is refused with one line (:class:`~charcurves.ConfigError`): charcurves only replaces
-    regular files. ``label`` names the path in that line (``"--out"``).
+    the file it points to (a link is written through and stays a link). A device, FIFO or socket is
+    refused with one line (:class:`~charcurves.ConfigError`; a directory with ``IsADirectoryError``):
+    charcurves only replaces regular files. ``label`` names the path in that line (``"--out"``).
 
     Examples
     --------
@@ -99,8 +99,8 @@ def output_target(path: str | os.PathLike, label: str = "the output") -> str:
         return target
     except OSError as exc:  # a loop of links, a component that is not a folder: the caller's write names it
         raise OSError(exc.errno, exc.strerror, p) from None
-    if stat.S_ISDIR(st.st_mode):
-        raise ConfigError(f"{label} {p!r} is a directory, not a file; give a file path")
+    if stat.S_ISDIR(st.st_mode):  # as open() would say (the CLI: "cannot write X (is a directory, ...)")
+        raise IsADirectoryError(errno.EISDIR, "is a directory, not a file", p)
     kind = special_file_kind(st.st_mode)
     if kind is not None:
         where = "" if target == p else f" (the link points to {target!r})"
