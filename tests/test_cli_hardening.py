@@ -226,3 +226,228 @@ def test_validate_reports_a_failed_free_run_with_exit_1_and_writes_standard_json
     assert main(["validate", str(tmp_path / "fit" / "model"), train, "--rows", "0:500", "--out",
                  str(tmp_path / "ok")]) == 0
     assert json.loads((tmp_path / "ok" / "validation.json").read_text())["status"] == "ok"
+
+
+# ---------------------------------------------------------------------- outputs (issue 50, item 3)
+def _simulate(capsys, out) -> tuple[int, str]:
+    capsys.readouterr()
+    code = main(["simulate", "duffing", "--t-end", "5", "--n-points", "51", "--out", str(out)])
+    return code, capsys.readouterr().err
+
+
+def test_a_fifo_socket_or_device_target_is_refused_and_left_as_it_is(tmp_path, capsys):
+    import socket
+
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    sock_path = tmp_path / "sock"
+    sock = socket.socket(socket.AF_UNIX)
+    sock.bind(str(sock_path))
+    targets = [(fifo, "a FIFO (named pipe)", stat.S_ISFIFO), (sock_path, "a socket", stat.S_ISSOCK)]
+    try:  # a node of our own with the numbers of /dev/null (1:3): harmless, and never a real device path
+        os.mknod(tmp_path / "null", 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+        targets.append((tmp_path / "null", "a character device", stat.S_ISCHR))
+    except (PermissionError, AttributeError):
+        pass  # not root: the FIFO and the socket take the same path through output_target
+    try:
+        for path, kind, is_kind in targets:
+            code, err = _simulate(capsys, path)
+            assert code == 2
+            assert err == f"charcurves: error: --out {str(path)!r} is {kind}, not a regular file; give a file path\n"
+            assert is_kind(os.lstat(path).st_mode), path  # not replaced by a regular file
+    finally:
+        sock.close()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p, _, _ in targets)  # no temporary left
+
+
+def test_a_symlink_is_written_through_and_stays_a_link(tmp_path, capsys):
+    (tmp_path / "real.csv").write_text("old\n")
+    os.symlink("real.csv", tmp_path / "link.csv")
+    os.symlink("new.csv", tmp_path / "dangling.csv")
+    for link, target in (("link.csv", "real.csv"), ("dangling.csv", "new.csv")):
+        code, err = _simulate(capsys, tmp_path / link)
+        assert code == 0, err
+        assert os.readlink(tmp_path / link) == target
+        lines = (tmp_path / target).read_text().splitlines()
+        assert lines[0] == "t,x,v,a,F" and len(lines) == 52
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    os.symlink("pipe", tmp_path / "to-pipe")
+    code, err = _simulate(capsys, tmp_path / "to-pipe")
+    assert code == 2 and "is a FIFO (named pipe) (the link points to " in err and err.count("\n") == 1
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+
+
+def test_a_full_disk_is_reported_in_one_line_and_leaves_no_temporary(tmp_path, capsys):
+    small = tmp_path / "small"
+    small.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(small)], capture_output=True)
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a small tmpfs here ({mounted.stderr.decode().strip()[:80]}); needs root")
+    try:
+        code, err = _simulate(capsys, small / "x.csv")  # 51 rows fit in 64 KiB: write the full record
+        assert code == 0, err
+        code = main(["simulate", "duffing", "--out", str(small / "y.csv")])  # 1000 rows, about 100 KB
+        err = capsys.readouterr().err
+        assert code == 2
+        assert err == (f"charcurves: error: cannot write {str(small / 'y.csv')!r} (No space left on device); check the "
+                       "path, its permissions and the free disk space\n")
+        assert sorted(os.listdir(small)) == ["x.csv"]
+    finally:
+        subprocess.run(["umount", str(small)], check=True)
+
+
+def test_a_failing_fsync_is_reported_naming_the_file_and_the_target_is_kept(tmp_path, monkeypatch):
+    import errno
+
+    from charcurves.io import atomic_write_bytes
+
+    path = tmp_path / "result.json"
+    path.write_bytes(b"before")
+
+    def broken_fsync(fd):
+        raise OSError(errno.EIO, "Input/output error")
+
+    monkeypatch.setattr(os, "fsync", broken_fsync)
+    with pytest.raises(OSError) as info:
+        atomic_write_bytes(path, b"after")
+    assert (info.value.errno, info.value.filename) == (errno.EIO, str(path))
+    assert path.read_bytes() == b"before" and os.listdir(tmp_path) == ["result.json"]
+
+
+def test_a_second_fit_into_a_held_folder_is_refused_naming_the_holder(tmp_path, capsys, record):
+    csv = _write(tmp_path / "d.csv", record)
+    out = tmp_path / "o"
+    holder = subprocess.Popen([sys.executable, "-c", "import sys; from charcurves.io import folder_lock\n"
+                               f"with folder_lock({str(out)!r}):\n print('held', flush=True); sys.stdin.read()"],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline() == "held\n"
+        capsys.readouterr()
+        code = main(["fit", csv, "--out", str(out), *FAST])
+        err = capsys.readouterr().err
+    finally:
+        holder.communicate("", timeout=60)
+    assert code == 2
+    assert err == (f"charcurves: error: --out {str(out)!r} is being written by another charcurves process (pid "
+                   f"{holder.pid}, holding .charcurves.lock); wait for it to finish or give another output folder\n")
+    assert os.listdir(out) == []  # nothing of the refused fit, and the holder removed its lock file
+    code, err, res = _fit(capsys, csv, out)
+    assert code == 0 and res["method"] == "poly-cc"
+    assert sorted(os.listdir(out)) == ["model", "result.json", "summary.txt", "timing.json"]  # no lock file left
+
+
+def test_an_input_named_like_an_output_is_never_overwritten(tmp_path, capsys, record):
+    out = tmp_path / "o"
+    out.mkdir()
+    csv = _write(out / "summary.txt", record)
+    before = (out / "summary.txt").read_bytes()
+    capsys.readouterr()
+    assert main(["fit", csv, "--out", str(out), *FAST]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"charcurves: error: the record {csv!r} is the output {str(out / 'summary.txt')!r} of this command, "
+                   "which would overwrite it; move the record out of the way or give another --out\n")
+    assert (out / "summary.txt").read_bytes() == before and os.listdir(out) == ["summary.txt"]
+    fit_dir = tmp_path / "fit"
+    code, err, _ = _fit(capsys, _write(tmp_path / "d.csv", record), fit_dir)
+    assert code == 0, err
+    result = (fit_dir / "result.json").read_bytes()
+    assert main(["report", str(fit_dir), "--out", str(fit_dir / "result.json")]) == 2
+    err = capsys.readouterr().err
+    assert "the result file " in err and "move the result file out of the way or give another --out" in err
+    assert (fit_dir / "result.json").read_bytes() == result
+
+
+# ---------------------------------------------------------------------- a second interrupt (issue 50, item 4)
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_second_interrupt_50_ms_after_the_first_keeps_the_best_model(tmp_path, record, sig):
+    """Before: the second signal, landing while the fit finished up after the first, escaped the fit and
+    nothing was written ("interrupted before a model was trained", 3 of 3 runs)."""
+    from charcurves import load_model
+
+    csv = _write(tmp_path / "d.csv", record)
+    out = tmp_path / "o"
+    proc = subprocess.Popen([sys.executable, "-m", "charcurves", "fit", csv, "--out", str(out), "--preset", "paper",
+                             "--no-figure"], env=dict(os.environ, OMP_NUM_THREADS="1"), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        lines = []
+        deadline = time.monotonic() + 240
+        while time.monotonic() < deadline:
+            line = proc.stderr.readline()
+            lines.append(line)
+            if not line or line.lstrip().startswith("["):
+                break
+        assert lines[-1].lstrip().startswith("["), "".join(lines)  # training reports progress: it is running
+        proc.send_signal(sig)
+        time.sleep(0.05)
+        proc.send_signal(sig)
+        _, rest = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, "".join(lines) + rest
+    assert rest.strip().splitlines()[-2:] == [
+        "charcurves: interrupted again; still keeping the best model so far (a third interrupt quits at once, "
+        "without writing it)",
+        f"charcurves: interrupted; kept the best model so far in {out / 'model'} (result.json marked interrupted); "
+        "rerun to finish the fit"]
+    assert json.loads((out / "result.json").read_text())["interrupted"] is True
+    model = load_model(out / "model")
+    assert set(model.curves) == {"f1", "f2"} and np.isfinite(model.curves["f2"](np.linspace(-1, 1, 5))).all()
+    assert sorted(p.name for p in out.iterdir()) == ["model", "result.json", "summary.txt", "timing.json"]
+
+
+def test_ctrl_c_stops_a_search_running_in_cpp_at_once():
+    """Operon's search runs in C++, where Python runs no signal handler: it now runs in a helper thread
+    and the interrupt is raised while the search still runs (before: only when the search returned,
+    35 s after a Ctrl-C at 0.5 s in a 45 s search)."""
+    pytest.importorskip("pyoperon")
+    from charcurves.symbolic import OperonEngine, searches_running
+
+    z = np.linspace(-2, 2, 400)
+    OperonEngine(generations=2).fit(z[:, None], z, ["z"], random_state=5)  # imports done before the alarm
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGALRM, interrupt)
+    signal.setitimer(signal.ITIMER_REAL, 0.3)
+    try:
+        with pytest.raises(KeyboardInterrupt):  # a search of about 3 s on this machine
+            OperonEngine(generations=8, population_size=800).fit(z[:, None], np.sin(3 * z) + z**3, ["z"],
+                                                                 random_state=1)
+        assert searches_running() == 1  # raised while the C++ search still ran
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+        deadline = time.monotonic() + 120
+        while searches_running() and time.monotonic() < deadline:  # let the abandoned search end
+            time.sleep(0.1)
+    assert searches_running() == 0
+
+
+def test_a_benchmark_interrupted_after_its_sweep_names_the_stored_rows(tmp_path, capsys, monkeypatch):
+    """Before: "interrupted before a model was trained; nothing was kept", though the rows were stored.
+    The interrupt is raised where Ctrl-C would land in the side studies after the main sweep."""
+    import sqlite3
+
+    from charcurves.experiments import _side_studies
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(_side_studies, "lyapunov", interrupted)
+    out = tmp_path / "bench"
+    capsys.readouterr()
+    code = main(["benchmark", "--out", str(out), "--systems", "duffing", "--methods", "parametric", "--snr", "40",
+                 "--realizations", "1", "--workers", "1", "--forward-cases", "0",
+                 "--skip", "forward,miw,sensitivity,appendix-f", "--quiet"])
+    err = capsys.readouterr().err
+    store = out / "results.sqlite"
+    with sqlite3.connect(store) as con:
+        n_rows = con.execute("SELECT COUNT(*) FROM results").fetchone()[0]
+    assert code == 130 and n_rows == 1
+    assert err == (f"charcurves: interrupted; the rows finished so far are stored in {store}; rerun the same command "
+                   "to resume (or add --report-only to build the report from them)\n")

@@ -495,3 +495,106 @@ def test_docs_index_links_every_page_and_every_link_resolves():
     assert all((docs / link).resolve().is_file() for link in links)
     # one line per page
     assert len([ln for ln in index.splitlines() if ln.startswith("- [")]) == len(pages)
+
+
+# ---------------------------------------------------------------------- model.json checksum, ranges (issue 50)
+def _resign(directory: Path) -> None:
+    """Recompute model.json's own checksum, as a writer would: for edits that must fail on their values."""
+    from charcurves.fitting import model_digest
+
+    _edit(directory, lambda doc: doc.update(model_sha256=model_digest(doc, doc["model_sha256_keys"])))
+
+
+@pytest.mark.parametrize("name,change,detail", [
+    ("parametric", lambda d: d.update(gain=d["gain"] * 1.5), None),
+    ("neural", lambda d: d["curves"][0].update(out_scale=d["curves"][0]["out_scale"] * 2), None),
+    ("neural", lambda d: d["info"].update(seed=12345), None),
+    ("neural", lambda d: d.pop("created"), "'created', covered by model_sha256, was removed"),
+], ids=["gain", "out_scale", "info", "removed key"])
+def test_an_edited_model_json_is_detected_at_load(saved, tmp_path, name, change, detail):
+    """Before: the checksum covered arrays.safetensors only, and an edited gain loaded unnoticed."""
+    d = _copy(saved, name, tmp_path)
+    doc = json.loads((d / "model.json").read_text())
+    assert doc["model_sha256_keys"] == sorted(k for k in doc if k not in ("model_sha256", "model_sha256_keys"))
+    _edit(d, change)
+    with pytest.raises(ModelFileError) as info:
+        load_model(d)
+    detail = detail or "its values no longer match model_sha256, e.g. an edited gain"
+    assert str(info.value) == (f"{str(d / 'model.json')!r} was modified after it was saved ({detail}); refusing to "
+                               "load it, re-fit the model or restore the file as saved")
+
+
+def test_models_saved_without_the_model_json_checksum_still_load(saved, tmp_path):
+    d = _copy(saved, "neural", tmp_path)
+    _edit(d, lambda doc: [doc.pop("model_sha256"), doc.pop("model_sha256_keys")])  # as written before issue 50
+    z = np.linspace(-1, 1, 21)
+    assert np.array_equal(load_model(d).curves["f1"](z), load_model(saved / "neural").curves["f1"](z))
+
+
+@pytest.mark.parametrize("where,value,words", [
+    (("curves", 0, "out_scale"), 1e308, "model.curves[0].out_scale is 1e+308, out of range (it must be between "
+                                        "1e-100 and 1e+100 in magnitude)"),
+    (("curves", 0, "in_scale"), 1e-200, "model.curves[0].in_scale is 1e-200, out of range"),
+    (("gain",), -1e101, "model.gain is -1e+101, out of range"),
+    (("offset",), 1e200, "model.offset is 1e+200, out of range (it must be finite and at most 1e+100 in magnitude)"),
+    (("curves", 1, "domain", 1), 1e300, "model.curves[1].domain[1] is 1e+300, out of range"),
+], ids=["out_scale", "in_scale", "gain", "offset", "domain"])
+def test_out_of_range_values_are_refused_at_load(saved, tmp_path, where, value, words):
+    d = _copy(saved, "neural", tmp_path)
+
+    def change(doc):
+        node = doc
+        for key in where[:-1]:
+            node = node[key]
+        node[where[-1]] = value
+
+    _edit(d, change)
+    _resign(d)  # a consistent checksum: the value itself is refused
+    with pytest.raises(ModelFileError) as info:
+        load_model(d)
+    assert words in str(info.value) and "re-fit the model" in str(info.value), str(info.value)
+
+
+def test_non_finite_weights_are_refused_at_load(saved, tmp_path):
+    import hashlib
+
+    from safetensors.numpy import load as st_load
+    from safetensors.numpy import save as st_save
+
+    d = _copy(saved, "neural", tmp_path)
+    arrays = st_load((d / "arrays.safetensors").read_bytes())
+    name = sorted(arrays)[0]
+    arrays[name] = arrays[name].copy()
+    arrays[name].flat[0] = np.inf
+    blob = st_save(arrays)
+    (d / "arrays.safetensors").write_bytes(blob)
+    _edit(d, lambda doc: doc.update(arrays_sha256=hashlib.sha256(blob).hexdigest()))
+    _resign(d)
+    with pytest.raises(ModelFileError, match=f"the array {name!r} holds non-finite values or values beyond 1e"):
+        load_model(d)
+
+
+def test_report_refuses_a_model_with_an_output_scale_of_1e308(saved, tmp_path, capsys):
+    """Before: report ended in an OverflowError traceback."""
+    from charcurves.cli import main
+
+    d = _copy(saved, "neural", tmp_path)
+    _edit(d, lambda doc: doc["curves"][0].update(out_scale=1e308))
+    _resign(d)
+    capsys.readouterr()
+    assert main(["report", str(d), "--out", str(tmp_path / "r.html")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "model.curves[0].out_scale is 1e+308, out of range" in err
+    assert not (tmp_path / "r.html").exists()
+
+
+def test_a_model_folder_link_is_saved_through(saved, tmp_path):
+    model = load_model(saved / "parametric")
+    (tmp_path / "real").mkdir()
+    os.symlink("real", tmp_path / "link")
+    model.save(tmp_path / "link")
+    assert os.readlink(tmp_path / "link") == "real" and sorted(os.listdir(tmp_path / "real")) == [
+        "arrays.safetensors", "model.json"]
+    os.symlink("fresh", tmp_path / "dangling")
+    model.save(tmp_path / "dangling")
+    assert load_model(tmp_path / "fresh").gain == model.gain

@@ -22,25 +22,43 @@ def _version() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    code = _main(argv)
+    if argv is None and "charcurves.symbolic" in sys.modules:
+        from ..symbolic import searches_running
+
+        if searches_running():  # a search Ctrl-C abandoned still runs in C++: end the program now, quietly
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(code)
+    return code
+
+
+def _main(argv: list[str] | None) -> int:
     from .._errors import CharCurvesError
 
     # bit-identical results for the same inputs and seed: MKL's products may otherwise differ in
     # the last bit with the memory alignment of their operands (read when torch loads MKL)
     os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 
+    state: dict = {}
     try:
         with sigterm_as_interrupt():
-            return _run(argv)
+            return _run(argv, state)
     except (UsageError, CharCurvesError) as exc:
         print(f"charcurves: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
+        if argv is None:  # the program ends now: a second signal must not kill it (exit 143) before it says why
+            import signal
+
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, signal.SIG_IGN)
         from ..experiments import SweepInterrupted
 
         if isinstance(exc, SweepInterrupted):  # benchmark: finished rows are stored, a rerun resumes
             print(f"charcurves: {exc}", file=sys.stderr)
             return 130
-        print("charcurves: interrupted before a model was trained; nothing was kept", file=sys.stderr)
+        print(f"charcurves: {_interrupted_message(state.get('args'))}", file=sys.stderr)
         return 130
     except OSError as exc:  # writing outputs: a full disk, a read-only or vanished directory
         target = getattr(exc, "filename2", None) or exc.filename  # os.replace names the target second
@@ -50,13 +68,30 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
-def _run(argv) -> int:
+def _interrupted_message(args) -> str:
+    """What an interrupt that ended a command outside its own handling kept."""
+    command = getattr(args, "command", None)
+    if command is None:
+        return "interrupted before the command started; nothing was written"
+    if command in ("fit", "demo"):
+        return "interrupted before a model was trained; nothing was kept"
+    if command == "benchmark":
+        store = os.path.join(args.out, "results.sqlite")
+        if os.path.isfile(store):
+            return (f"interrupted; the rows finished so far are stored in {store}; rerun the same command to resume "
+                    f"(or add --report-only to build the report from them)")
+        return "interrupted before any job finished; nothing was kept"
+    return f"interrupted; {command} did not finish and wrote nothing more"
+
+
+def _run(argv, state: dict) -> int:
     from ._commands import cmd_benchmark, cmd_report, cmd_select, cmd_simulate, cmd_validate
     from ._fit import cmd_demo, cmd_fit
     from ._parser import build_parser
 
     parser = build_parser(_version())
     args = parser.parse_args(argv)
+    state["args"] = args
     if args.command is None:
         parser.print_help()
         return 2

@@ -15,8 +15,11 @@ def cmd_simulate(a) -> int:
     from ..systems import get_system
     from ..systems import sample_times
 
+    from ..io import check_output_file
+
     system = get_system(a.system, a.variant)
     sample_times(a.t_end, a.n_points)  # the bounds, before any integration
+    check_output_file(a.out, "--out")  # a device, FIFO or socket is refused; a link is written through
     if a.system == "two-dof":  # a multi-DOF record: t,x1,x2,v1,a1,v2,a2,F1,F2
         return _simulate_multi(system, a, say)
     traj = system.simulate(t_end=a.t_end, n_points=a.n_points)
@@ -51,6 +54,16 @@ def cmd_report(a) -> int:
         out = os.path.join(folder, "report.html")
     elif os.path.isdir(out):
         raise UsageError(f"--out {out!r} is a directory; give the HTML file to write, e.g. {os.path.join(out, 'report.html')}")
+    from ..io import check_output_file
+    from ._common import refuse_inputs_among_outputs
+
+    if a.out is not None:  # a device, FIFO or socket is refused, a link written through (the default too, on writing)
+        check_output_file(out, "--out")
+    folder = a.model if os.path.isfile(os.path.join(a.model, "model.json")) else os.path.join(a.model, "model")
+    reads = {"model file": os.path.join(folder, "model.json"), "arrays file": os.path.join(folder, "arrays.safetensors"),
+             "result file": os.path.join(os.path.dirname(os.path.abspath(folder)), "result.json")}
+    for what, path in reads.items():
+        refuse_inputs_among_outputs({what: path}, [out])
     import matplotlib
 
     matplotlib.use("Agg")

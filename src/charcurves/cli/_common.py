@@ -82,6 +82,39 @@ def sigterm_as_interrupt():
 
 
 @contextlib.contextmanager
+def first_interrupt_only():
+    """While a fit runs: the first Ctrl-C or SIGTERM raises KeyboardInterrupt (training stops and
+    keeps its best weights, later stages are skipped), a second one is held (one line says so) so
+    that it cannot lose the model the first one kept while that model is finished and written; a
+    third quits at once (exit 130) without writing it. Main thread only."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    count = [0]
+
+    def handler(signum, frame):
+        count[0] += 1
+        if count[0] == 1:
+            raise KeyboardInterrupt
+        if count[0] == 2:
+            print("charcurves: interrupted again; still keeping the best model so far (a third interrupt quits at "
+                  "once, without writing it)", file=sys.stderr, flush=True)
+            return
+        print("charcurves: interrupted a third time; quit without writing the model", file=sys.stderr, flush=True)
+        os._exit(130)
+
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+@contextlib.contextmanager
 def signals_deferred():
     """Hold Ctrl-C and SIGTERM while results are written (so files are never left half-done); yields
     a flag that is true when one arrived, for the caller to honour afterwards."""
@@ -102,3 +135,60 @@ def signals_deferred():
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+#: What ``fit`` (and ``demo``) write in ``--out``: files, and the model folder with everything under it.
+FIT_OUTPUTS = ("result.json", "timing.json", "summary.txt", "curves.png", "report.html", "model")
+
+
+def _same_path(a: str, b: str) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.realpath(a) == os.path.realpath(b)
+
+
+def refuse_inputs_among_outputs(inputs: dict[str, str], outputs: list[str], option: str = "--out") -> None:
+    """Refuse, before any work, an input file (``{what: path}``) that is one of the ``outputs`` (or lies
+    inside an output folder such as model/): the run would overwrite what it reads. One line."""
+    from .._errors import ConfigError
+
+    for what, path in inputs.items():
+        if path is None or not os.path.exists(path):
+            continue
+        real = os.path.realpath(path)
+        for out in outputs:
+            inside = os.path.isdir(out) and real.startswith(os.path.realpath(out) + os.sep)
+            if inside or _same_path(path, out):
+                raise ConfigError(f"the {what} {path!r} is the output {out!r} of this command, which would overwrite it; "
+                                  f"move the {what} out of the way or give another {option}")
+
+
+_HELD: set[str] = set()  # the output folders this process holds (a nested holder of the same folder passes)
+
+
+@contextlib.contextmanager
+def held_out_dir(out_dir: str):
+    """Create ``--out`` and hold it for this process for the whole run (a lock file in it, see
+    :func:`charcurves.io.folder_lock`): a second ``fit`` writing the same folder at the same time is
+    refused at once with one line naming this one's pid. A folder this call created is removed again
+    when the run ends with an error before writing anything into it."""
+    from ..io import folder_lock
+
+    key = os.path.realpath(out_dir)
+    if key in _HELD:
+        yield
+        return
+    existed = os.path.isdir(out_dir)
+    make_out_dir(out_dir)
+    _HELD.add(key)
+    try:
+        with folder_lock(out_dir):
+            yield
+    except BaseException:
+        if not existed:
+            with contextlib.suppress(OSError):
+                os.rmdir(out_dir)  # only when empty
+        raise
+    finally:
+        _HELD.discard(key)

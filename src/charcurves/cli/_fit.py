@@ -6,7 +6,8 @@ import os
 import sys
 import time
 
-from ._common import make_out_dir, check_out_dir, say, signals_deferred, warn
+from ._common import (FIT_OUTPUTS, check_out_dir, first_interrupt_only, held_out_dir, make_out_dir, say,
+                      signals_deferred, warn)
 
 __all__ = ["cmd_fit", "cmd_demo", "source_path", "time_column"]
 
@@ -60,32 +61,35 @@ def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_g
         equation=equation, objective=objective or "auto", snr_db=snr,
     )
     check_out_dir(out_dir)  # before the fit: a bad --out must not cost a long run
-    t0 = time.perf_counter()
-    if bands is not None:
-        from ..fitting import check_band_options
+    # one writer at a time (a second fit into the same --out is refused); a second interrupt never
+    # loses what the first kept
+    with held_out_dir(out_dir), first_interrupt_only():
+        t0 = time.perf_counter()
+        if bands is not None:
+            from ..fitting import check_band_options
 
-        check_band_options(bands, bands_level)  # before the fit: a bad option must not cost a long run
-    model = est.fit(traj).model_
-    say(f"charcurves: priors: {model.info['priors']['summary']}"
-        + ("; tests in result.json under 'symmetry'" if "symmetry_auto" in model.info else ""), quiet)
-    if bands is not None and not model.info.get("interrupted"):
-        from ..fitting import fit_ensembles, resolved_estimator
-        from ..selection import attach_bands, curve_bands
+            check_band_options(bands, bands_level)  # before the fit: a bad option must not cost a long run
+        model = est.fit(traj).model_
+        say(f"charcurves: priors: {model.info['priors']['summary']}"
+            + ("; tests in result.json under 'symmetry'" if "symmetry_auto" in model.info else ""), quiet)
+        if bands is not None and not model.info.get("interrupted"):
+            from ..fitting import fit_ensembles, resolved_estimator
+            from ..selection import attach_bands, curve_bands
 
-        say(f"uncertainty bands: {bands} {bands_kind} refits ...", quiet)
-        try:
-            ens = fit_ensembles(resolved_estimator(est, model), [traj], bands, kind=bands_kind, points=[model])[0]
-        except KeyboardInterrupt:  # the main fit is finished: write it, with the bands marked skipped
-            model.info["interrupted"] = True
-            model.info["bands"] = "skipped: interrupted"
-        else:
-            attach_bands(model, curve_bands(ens, level=bands_level))
-    elapsed = time.perf_counter() - t0
-    with signals_deferred() as late_interrupt:
-        make_out_dir(out_dir)
-        write_results(model, out_dir, method=model.method, family=family, free_gain=free_gain, truth=truth,
-                      figure=figure, quiet=quiet, source=source, elapsed=elapsed, warnings=list(warnings),
-                      record=traj, report=report)
+            say(f"uncertainty bands: {bands} {bands_kind} refits ...", quiet)
+            try:
+                ens = fit_ensembles(resolved_estimator(est, model), [traj], bands, kind=bands_kind, points=[model])[0]
+            except KeyboardInterrupt:  # the main fit is finished: write it, with the bands marked skipped
+                model.info["interrupted"] = True
+                model.info["bands"] = "skipped: interrupted"
+            else:
+                attach_bands(model, curve_bands(ens, level=bands_level))
+        elapsed = time.perf_counter() - t0
+        with signals_deferred() as late_interrupt:
+            make_out_dir(out_dir)
+            write_results(model, out_dir, method=model.method, family=family, free_gain=free_gain, truth=truth,
+                          figure=figure, quiet=quiet, source=source, elapsed=elapsed, warnings=list(warnings),
+                          record=traj, report=report)
     model.info["interrupted_while_writing"] = late_interrupt[0]
     return model
 
@@ -152,7 +156,11 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
     atomic_write_bytes(os.path.join(out_dir, "timing.json"), json_bytes(timing))
     if figure:
         fig = _curves_figure(model, truth, record, f"{method}: {model.template.equation}")
-        fig.savefig(os.path.join(out_dir, "curves.png"), dpi=120)
+        import io
+
+        buf = io.BytesIO()  # rendered in memory, then written atomically like the other files
+        fig.savefig(buf, format="png", dpi=120)
+        atomic_write_bytes(os.path.join(out_dir, "curves.png"), buf.getvalue())
     if report:
         import matplotlib
 
@@ -223,6 +231,10 @@ def cmd_fit(a) -> int:
         raise UsageError(f"argument --gauge: invalid choice: {a.gauge!r} (the separable family anchors 'f1' or "
                          "'f2'; other families name their own curves) (see 'charcurves fit --help')")
 
+    from ..io import FOLDER_LOCK_NAME
+    from ._common import refuse_inputs_among_outputs
+
+    refuse_inputs_among_outputs({"record": a.csv}, [os.path.join(a.out, name) for name in FIT_OUTPUTS + (FOLDER_LOCK_NAME,)])
     traj = read_record(a.csv, family=a.family, equation=a.equation, time_col=time_column(a.time_col), x_col=a.x_col,
                        force_col=a.force_col, sample_rate=a.sample_rate, rows=a.rows)
     truth = None
@@ -280,11 +292,12 @@ def cmd_demo(a) -> int:
     t0 = time.perf_counter()
     system = get_system("duffing")
     traj = corrupt(system.simulate(), 20.0, on="force", seed=a.seed)
-    make_out_dir(a.out)
-    traj.to_csv(os.path.join(a.out, "duffing_20dB.csv"))
-    say(f"simulated the Duffing oscillator (paper parameters), 20 dB noise on the forcing -> "
-        f"{os.path.join(a.out, 'duffing_20dB.csv')}")
-    model = fit_and_write(traj, a.out, method="nn-cc+sym", sym="f1=odd,f2=odd", seed=a.seed,
-                          truth=system.true_curves(), threads=a.threads, warnings=traj.quality_warnings())
+    check_out_dir(a.out)
+    with held_out_dir(a.out):  # the record and the fit, one writer at a time
+        traj.to_csv(os.path.join(a.out, "duffing_20dB.csv"))
+        say(f"simulated the Duffing oscillator (paper parameters), 20 dB noise on the forcing -> "
+            f"{os.path.join(a.out, 'duffing_20dB.csv')}")
+        model = fit_and_write(traj, a.out, method="nn-cc+sym", sym="f1=odd,f2=odd", seed=a.seed,
+                              truth=system.true_curves(), threads=a.threads, warnings=traj.quality_warnings())
     say(f"demo finished in {time.perf_counter() - t0:.1f} s")
     return interrupted_exit(model, a.out)

@@ -37,6 +37,8 @@ def write_model_files(path: str, files: dict[str, bytes]) -> None:
     from ..io import atomic_write_bytes, make_temp_dir
 
     order = sorted(files, key=lambda name: (name == "model.json", name))
+    if os.path.islink(path):  # a link to a model folder is written through; the link stays
+        path = os.path.realpath(path)
     parent = os.path.dirname(os.path.abspath(path))
     os.makedirs(parent, exist_ok=True)
     if not os.path.exists(path):

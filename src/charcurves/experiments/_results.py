@@ -12,6 +12,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from .._errors import ConfigError
+from ..io import atomic_write_bytes
 from ._tables import _eta
 
 __all__ = ["RESULT_COLUMNS", "BENCHMARK_TAG", "MIW_METHODS", "METHOD_GROUPS", "empty_results_frame", "results_frame",
@@ -109,9 +110,7 @@ def _all_methods() -> tuple[str, ...]:
 
 def _write_csv(df, path: str) -> None:
     cols = [c for c in RESULT_COLUMNS if c in df.columns]
-    tmp = f"{path}.tmp{os.getpid()}"
-    df[cols].to_csv(tmp, index=False)
-    os.replace(tmp, path)
+    atomic_write_bytes(path, df[cols].to_csv(index=False).encode("utf-8"))
 
 
 def read_results_csv(path: str | os.PathLike):

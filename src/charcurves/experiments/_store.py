@@ -265,11 +265,10 @@ class ResultsStore:
 
     def to_csv(self, path: str | os.PathLike, *, extra: bool = False) -> None:
         """Write :meth:`to_dataframe` to a CSV file atomically (temp file + rename)."""
+        from ..io import atomic_write_bytes
+
         df = self.to_dataframe(extra=extra)
-        p = os.fspath(path)
-        tmp = f"{p}.tmp{os.getpid()}"
-        df.to_csv(tmp, index=False)
-        os.replace(tmp, p)
+        atomic_write_bytes(path, df.to_csv(index=False).encode("utf-8"))
 
     def close(self) -> None:
         with self._lock:

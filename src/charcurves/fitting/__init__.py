@@ -38,6 +38,8 @@ from ._model import MODEL_SCHEMA as MODEL_SCHEMA
 from ._model import FittedModel as FittedModel
 from ._model import load_model as load_model
 from ._model import validate_model_document as validate_model_document
+from ._model_schema import check_model_digest as check_model_digest
+from ._model_schema import model_digest as model_digest
 from ._objectives import OBJECTIVES as OBJECTIVES
 from ._objectives import EquationError as EquationError
 from ._objectives import OutputError as OutputError

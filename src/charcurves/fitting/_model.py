@@ -13,7 +13,8 @@ from .._errors import ConfigError, ModelFileError
 from ..curves import FittedCurve, curve_from_spec
 from ..io import atomic_write_bytes
 from ..templates import EquationTemplate, display, get_template
-from ._model_schema import FORMAT_VERSION, MODEL_SCHEMA, validate_model_document
+from ._model_schema import (FORMAT_VERSION, MODEL_SCHEMA, check_array_values, check_model_digest, model_digest,
+                            validate_model_document)
 
 __all__ = ["FittedModel", "FORMAT_VERSION", "MODEL_SCHEMA", "load_model", "validate_model_document"]
 
@@ -304,7 +305,13 @@ class FittedModel:
         import hashlib
 
         doc["arrays_sha256"] = hashlib.sha256(blob).hexdigest()
+        # model.json is covered too: the digest of every key written, over the values as they read back
+        doc = json.loads(json.dumps(doc))
+        doc["model_sha256_keys"] = sorted(doc)
+        doc["model_sha256"] = model_digest(doc, doc["model_sha256_keys"])
         text = json.dumps(doc, indent=2).encode()
+        if os.path.islink(d):  # a link to a model folder is written through; the link stays
+            d = os.path.realpath(d)
         if not os.path.exists(d):
             # a new model appears all at once: written in a temporary sibling, then renamed
             import shutil
@@ -392,6 +399,7 @@ def load_model(directory: str | os.PathLike) -> FittedModel:
         except Exception as exc:  # safetensors raises its own error type for a damaged header
             raise ModelFileError(f"{apath!r} is not a readable safetensors file ({type(exc).__name__}); "
                                  "the model file is corrupted, re-save or re-fit the model") from None
+        check_array_values(arrays, apath)
         tdoc = dict(doc["template"])
         family = tdoc.pop("family")
         template = get_template(family, **tdoc)
@@ -400,8 +408,11 @@ def load_model(directory: str | os.PathLike) -> FittedModel:
             c = curve_from_spec(spec, arrays)
             curves[c.name] = c
         loss = doc["loss"] if doc["loss"] is not None else float("nan")
-        return FittedModel(template, doc["method"], curves, doc["gain"], doc["offset"], loss,
-                           doc.get("info", {}))
+        model = FittedModel(template, doc["method"], curves, doc["gain"], doc["offset"], loss, doc.get("info", {}))
+        # last, so that a damaged curve is named by its own check first; an edit that leaves a
+        # readable model (the gain changed) is caught here
+        check_model_digest(doc, jpath)
+        return model
     except ModelFileError as exc:
         message = str(exc)
         if not any(fix in message for fix in ("re-save", "re-fit", "upgrade")):  # the curve readers' own errors

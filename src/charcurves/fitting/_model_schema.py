@@ -7,10 +7,18 @@ import numpy as np
 from .._errors import ModelFileError
 from ..curves import expression_cost_problem
 
-__all__ = ["MODEL_SCHEMA", "validate_model_document", "FORMAT_VERSION"]
+__all__ = ["MODEL_SCHEMA", "validate_model_document", "FORMAT_VERSION", "MAX_MODEL_MAGNITUDE", "model_digest",
+           "check_model_digest", "check_array_values"]
 
 FORMAT_VERSION = 1
 _MODEL_JSON = "model.json"
+
+#: The largest magnitude a number of a model file may have (gain, offset, domains, scales, weights) and, for
+#: the gain and the scales, the inverse of the smallest: far beyond any fit, small enough that products
+#: and squares of them stay finite in float64 (an output scale of 1e308 would overflow every evaluation).
+MAX_MODEL_MAGNITUDE = 1e100
+_SCALES = ("in_scale", "out_scale", "half_width")
+_CURVE_NUMBERS = ("shift", "in_scale", "out_scale", "center", "half_width", "constant")
 
 
 # ---------------------------------------------------------------------- model.json schema
@@ -126,6 +134,8 @@ def validate_model_document(doc, jpath: str = _MODEL_JSON) -> None:
             need = "a finite non-zero number" if nonzero else "a finite number"
             raise ModelFileError(f"{jpath!r}: model.{key} is {doc[key]!r}, but must be {need}; the model file is "
                                  "corrupted or was edited by hand, re-fit the model")
+    _check_magnitude(doc["gain"], "model.gain", jpath, nonzero=True)
+    _check_magnitude(doc["offset"], "model.offset", jpath)
     sha = doc["arrays_sha256"]
     if len(sha) != 64 or any(ch not in "0123456789abcdef" for ch in sha):
         raise ModelFileError(f"{jpath!r}: model.arrays_sha256 is not a sha256 hex digest; the model file is "
@@ -139,6 +149,12 @@ def validate_model_document(doc, jpath: str = _MODEL_JSON) -> None:
         kind_schema = _CURVE_KIND_SCHEMA.get(curve["kind"])
         if kind_schema is not None:  # other kinds (register_curve_kind) check themselves
             _check(curve, kind_schema, where, jpath)
+        for k, value in enumerate(curve["domain"]):
+            _check_magnitude(value, f"{where}.domain[{k}]", jpath)
+        for key in _CURVE_NUMBERS:
+            value = curve.get(key)
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                _check_magnitude(value, f"{where}.{key}", jpath, nonzero=key in _SCALES)
         texts = [curve["expression"]] if curve["kind"] == "symbolic" else list(curve.get("basis") or [])
         for text in texts:
             problem = expression_cost_problem(text)
@@ -149,3 +165,86 @@ def validate_model_document(doc, jpath: str = _MODEL_JSON) -> None:
     if len(set(names)) != len(names) or not names:
         raise ModelFileError(f"{jpath!r}: curve names {names} are empty or repeated; the model file is corrupted, "
                              "re-save or re-fit the model")
+
+
+def _check_magnitude(value, where: str, jpath: str, nonzero: bool = False) -> None:
+    """Refuse a number outside +-MAX_MODEL_MAGNITUDE (and, ``nonzero``, inside +-1/MAX_MODEL_MAGNITUDE)."""
+    v = float(value)
+    small = 1.0 / MAX_MODEL_MAGNITUDE
+    if not np.isfinite(v) or abs(v) > MAX_MODEL_MAGNITUDE or (nonzero and abs(v) < small):
+        need = (f"between {small:g} and {MAX_MODEL_MAGNITUDE:g} in magnitude" if nonzero
+                else f"finite and at most {MAX_MODEL_MAGNITUDE:g} in magnitude")
+        raise ModelFileError(f"{jpath!r}: {where} is {value!r}, out of range (it must be {need}); the model file is "
+                             "corrupted or was edited by hand, re-fit the model")
+
+
+def check_array_values(arrays: dict, apath: str) -> None:
+    """Refuse weights that are not finite or exceed :data:`MAX_MODEL_MAGNITUDE` in magnitude (one line)."""
+    for name in sorted(arrays):
+        a = np.asarray(arrays[name], dtype=float)
+        if a.size and (not np.all(np.isfinite(a)) or float(np.max(np.abs(a))) > MAX_MODEL_MAGNITUDE):
+            raise ModelFileError(f"{apath!r}: the array {name!r} holds non-finite values or values beyond "
+                                 f"{MAX_MODEL_MAGNITUDE:g} in magnitude; the model file is corrupted, re-fit the model")
+
+
+def model_digest(doc: dict, keys) -> str:
+    """sha256 (hex) of the values of ``keys`` in ``doc``, as canonical JSON (sorted keys, no spaces):
+    what model.json's ``model_sha256`` holds for the keys listed in ``model_sha256_keys``.
+
+    Examples
+    --------
+    >>> from charcurves.fitting import model_digest
+    >>> a = model_digest({"gain": 1.0, "method": "poly-cc"}, ["gain", "method"])
+    >>> a == model_digest({"method": "poly-cc", "gain": 1.0, "comment": "not covered"}, ["gain", "method"])
+    True
+    >>> a == model_digest({"gain": 2.0, "method": "poly-cc"}, ["gain", "method"])
+    False
+    """
+    import hashlib
+    import json
+
+    covered = {k: doc[k] for k in keys}
+    text = json.dumps(covered, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+    return hashlib.sha256(text.encode("ascii")).hexdigest()
+
+
+def check_model_digest(doc: dict, jpath: str = _MODEL_JSON) -> None:
+    """Refuse a model.json whose values no longer match its ``model_sha256`` (edited by hand after
+    saving: a changed gain, a scale, a curve's settings). A file without ``model_sha256`` (written
+    before charcurves covered model.json by a checksum) is not checked. Keys a later release adds
+    outside ``model_sha256_keys`` are not covered, so they may be added.
+
+    Examples
+    --------
+    >>> import json, os, tempfile
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import check_model_digest
+    >>> from charcurves.systems import get_system
+    >>> path = os.path.join(tempfile.mkdtemp(), "model")
+    >>> cc.fit(get_system("duffing").simulate(), method="parametric").save(path)
+    >>> with open(os.path.join(path, "model.json")) as fh:
+    ...     doc = json.load(fh)
+    >>> check_model_digest(doc)
+    >>> try:
+    ...     check_model_digest({**doc, "gain": 2.0})
+    ... except cc.ModelFileError as exc:
+    ...     print(str(exc)[:58])
+    'model.json' was modified after it was saved (its values n
+    """
+    if "model_sha256" not in doc:
+        return
+    digest, keys = doc["model_sha256"], doc.get("model_sha256_keys")
+    if (not isinstance(digest, str) or not isinstance(keys, list) or not all(isinstance(k, str) for k in keys)
+            or "model_sha256" in keys):
+        raise ModelFileError(f"{jpath!r}: model_sha256 or model_sha256_keys is damaged; the model file is corrupted, "
+                             "re-save or re-fit the model")
+    missing = [k for k in keys if k not in doc]
+    try:
+        same = not missing and model_digest(doc, keys) == digest
+    except (TypeError, ValueError):
+        same = False
+    if not same:
+        detail = (f"{missing[0]!r}, covered by model_sha256, was removed" if missing
+                  else "its values no longer match model_sha256, e.g. an edited gain")
+        raise ModelFileError(f"{jpath!r} was modified after it was saved ({detail}); refusing to load it, re-fit "
+                             "the model or restore the file as saved")

@@ -3,20 +3,19 @@
 from __future__ import annotations
 
 import csv
-import errno
 import io
 import json
 import math
 import os
-import tempfile
 from typing import Any
 
 import numpy as np
 
 from .._errors import DataError
+from ._files import atomic_write_bytes, current_umask, make_temp_dir
 
-__all__ = ["read_csv_columns", "write_csv_columns", "atomic_write_bytes", "make_temp_dir", "current_umask",
-           "json_bytes", "json_safe", "non_finite_paths"]
+__all__ = ["read_csv_columns", "write_csv_columns", "json_bytes", "json_safe", "non_finite_paths",
+           "atomic_write_bytes", "current_umask", "make_temp_dir"]  # the last three live in _files
 
 
 def _read_text(path: str | os.PathLike) -> str:
@@ -129,81 +128,6 @@ def _is_number(s: str) -> bool:
     except ValueError:
         return False
     return True
-
-
-def current_umask() -> int:
-    """The process's umask (from /proc on Linux, else by setting and restoring it).
-
-    Examples
-    --------
-    >>> import os
-    >>> from charcurves.io import current_umask
-    >>> mask = os.umask(0o027)
-    >>> oct(current_umask())
-    '0o27'
-    >>> _ = os.umask(mask)
-    """
-    try:
-        with open("/proc/self/status", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError, IndexError):
-        pass
-    mask = os.umask(0o022)  # no other way to read it; restored at once
-    os.umask(mask)
-    return mask
-
-
-def make_temp_dir(parent: str | os.PathLike, prefix: str = ".tmp-") -> str:
-    """``tempfile.mkdtemp`` in ``parent``, but with the permissions a plain ``mkdir`` gets
-    (0777 & ~umask) instead of 0700, for a folder that is renamed into place.
-
-    Examples
-    --------
-    >>> import os, stat, tempfile
-    >>> from charcurves.io import current_umask, make_temp_dir
-    >>> path = make_temp_dir(tempfile.mkdtemp(), prefix=".tmp-model-")
-    >>> os.path.basename(path).startswith(".tmp-model-")
-    True
-    >>> stat.S_IMODE(os.stat(path).st_mode) == 0o777 & ~current_umask()
-    True
-    """
-    path = tempfile.mkdtemp(dir=os.fspath(parent), prefix=prefix)
-    os.chmod(path, 0o777 & ~current_umask())
-    return path
-
-
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and ``os.replace``; the file gets the
-    permissions a plain ``open`` would give (0666 & ~umask), not the temporary file's 0600.
-
-    Examples
-    --------
-    >>> import os, pathlib, stat, tempfile
-    >>> from charcurves.io import atomic_write_bytes, current_umask
-    >>> path = pathlib.Path(tempfile.mkdtemp()) / "result.json"
-    >>> atomic_write_bytes(path, b'{"ok": true}')
-    >>> path.read_bytes(), stat.S_IMODE(path.stat().st_mode) == 0o666 & ~current_umask()
-    (b'{"ok": true}', True)
-    """
-    p = os.fspath(path)
-    if os.path.isdir(p):
-        raise IsADirectoryError(errno.EISDIR, "is a directory, not a file", p)
-    directory = os.path.dirname(os.path.abspath(p))
-    os.makedirs(directory, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=directory, prefix=".tmp-", suffix=os.path.basename(p))
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            os.fchmod(fh.fileno(), 0o666 & ~current_umask())
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def json_safe(obj: Any) -> Any:

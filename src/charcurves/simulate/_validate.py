@@ -203,5 +203,11 @@ def _validation_figure(path, sims) -> None:
         ax.set_xlabel("t")
         ax.set_ylabel("simulated - measured")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    import io
+
+    from ..io import atomic_write_bytes
+
+    buf = io.BytesIO()  # rendered in memory, then written like every other output (atomically, links through)
+    fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())

@@ -34,6 +34,7 @@ from ._engine import (
     SymbolicRegressionEngine,
     make_engine,
     operators_option,
+    searches_running,
 )
 from ._pysr import PySREngine
 from ._expressions import eval_expression, expression_complexity, parse_infix, polish_constants, split_terms
@@ -58,6 +59,7 @@ __all__ = [
     "distill_curve_front",
     "eval_expression",
     "expression_complexity",
+    "searches_running",
     "has_jump",
     "turns",
     "make_engine",

@@ -68,6 +68,7 @@ import abc
 import copy
 import dataclasses
 import hashlib
+import threading
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -372,7 +373,7 @@ class OperonEngine(SymbolicRegressionEngine):
             )
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                reg.fit(X, y)
+                _interruptible(reg.fit, X, y)
             gens += int(reg.stats_.get("generations", 0))
             evals += int(reg.stats_.get("evaluation_count", 0))
             names = {h: f"X{i + 1}" for i, h in enumerate(reg.variables_)}
@@ -384,6 +385,56 @@ class OperonEngine(SymbolicRegressionEngine):
                 except (ValueError, SyntaxError, TypeError):
                     continue
         return exprs, {"generations_run": gens, "evaluations": evals}
+
+
+_RUNNING = [0]  # searches running in helper threads, abandoned ones included
+_RUNNING_LOCK = threading.Lock()
+
+
+def searches_running() -> int:
+    """How many SR searches run in helper threads now: after Ctrl-C stopped a search, it ends on its own
+    in the background (there is no way to cancel Operon's C++ search); a program that exits before it
+    ends leaves it to be torn down with the process.
+
+    Examples
+    --------
+    >>> from charcurves.symbolic import searches_running
+    >>> searches_running()
+    0
+    """
+    with _RUNNING_LOCK:
+        return _RUNNING[0]
+
+
+def _interruptible(fn, *args):
+    """``fn(*args)`` in a helper thread while the main thread waits in short steps, so that Ctrl-C and
+    SIGTERM stop a search that runs in C++ (Operon releases the GIL, but Python only runs signal
+    handlers between bytecodes of the main thread) within 0.1 s: KeyboardInterrupt is raised here, and
+    the abandoned search ends on its own in the background (its result is dropped). Elsewhere than
+    in the main thread (sweep workers) ``fn`` runs directly."""
+    if threading.current_thread() is not threading.main_thread():
+        return fn(*args)
+    box: dict = {}
+
+    def run():
+        try:
+            box["value"] = fn(*args)
+        except BaseException as exc:  # handed to the caller below
+            box["error"] = exc
+        finally:
+            with _RUNNING_LOCK:
+                _RUNNING[0] -= 1
+
+    with _RUNNING_LOCK:
+        _RUNNING[0] += 1
+
+    worker = threading.Thread(target=run, name="charcurves-sr-search", daemon=True)
+    worker.start()
+    while worker.is_alive():
+        worker.join(0.1)
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
 
 
 # ---------------------------------------------------------------------------------------------
