@@ -81,6 +81,10 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     f.add_argument("--sr-generations", type=int, default=None, help="SR generations (iterations)")
     f.add_argument("--sr-populations", type=int, default=None, help="symbolic regression: independent populations (PySR islands; Operon restarts; default 1)")
     f.add_argument("--sr-max-size", type=int, default=None, help="largest expression size (default 20)")
+    f.add_argument("--sr-operators", default=None,
+                   help="operators of post-SR and SR, comma-separated (e.g. add,sub,mul,abs,tanh; any of "
+                        "charcurves.symbolic.OPERATORS) or auto (default: post-SR searches + - * and then "
+                        "+ - * abs tanh sin cos exp sqrtabs per curve; SR + - *, tanh with sticking)")
     f.add_argument("--keep-sticking", action="store_true", help="fit samples where x' = 0 over a run too")
     f.add_argument("--time-col", default="t", help=_TIME_HELP)
     f.add_argument("--x-col", default="x", help="the position column (default x)")
