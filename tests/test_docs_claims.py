@@ -293,3 +293,18 @@ def test_appendix_f_is_what_the_docs_say():
         better = int((worst_d[sel] < worst_p[sel]).sum())
         median = float(np.median(worst_p[sel] / worst_d[sel]))
         assert f"{better} of {int(sel.sum())}" in text and f"median ratio {median:.3g}×" in text, (system, better, median)
+
+
+def test_the_post_sr_forms_figures_are_those_of_the_committed_run():
+    """docs/training-defaults.md quotes benchmarks/results/postsr_forms.json (bench_postsr_forms.py)."""
+    import json
+
+    doc = json.loads((ROOT / "benchmarks" / "results" / "postsr_forms.json").read_text())
+    text = _section(_page("training-defaults.md"), "## Post-SR operators", "## Harmonic terms")
+    for half in ("tune", "report"):
+        s = doc["summary"][half]
+        row = (f"| {s['recovered_before']} of {s['n_in_set']} | {s['recovered_after']} of {s['n_in_set']} | "
+               f"{s['mean_cpu_seconds_before']:.2f} | {s['mean_cpu_seconds_after']:.2f} |")
+        assert row in text, row
+    assert doc["summary"]["polynomial_truths_kept_polynomial_after"] == [7, 7] and "All 7 polynomial truths" in text
+    assert len(doc["curves"]) == 23 and sum(r["in_set"] for r in doc["curves"]) == 18
