@@ -3,8 +3,8 @@
 Each learned curve is evaluated on ``n`` evenly spaced points over its training range (the
 paper: 1000) and symbolic regression is run on ``z -> f(z)``; the result replaces the curve.
 
-Operator set ("auto", the default of ``sr_options["operators"]``), following the paper (no
-unary operator for Duffing, tanh for stick-slip) without running two searches per curve:
+Operator set ("auto", the default of ``sr_options["operators"]``): the paper's sets (no unary
+operator for Duffing, tanh for stick-slip), and beyond polynomials where the curve asks for it:
 
 * a neural curve with a learned jump (``NeuralFittedCurve`` with ``spec.jump``, added for
   records with sticking) is distilled *by parts*: its jump component ``mu tanh(z/eps)`` already
