@@ -167,6 +167,13 @@ NAMES = [
     Bad("unknown-sr-engine", "base", ("--method", "sr", "--sr-engine", "gplearn"), ("unknown sr engine 'gplearn'",
                                                                                     "operon"),
         ConfigError, est_kw={"method": "sr", "sr_options": {"engine": "gplearn"}}),
+    # checked before the network is trained (post-SR runs after it)
+    Bad("unknown-sr-operator", "base", ("--method", "nn-cc+sym+post-sr", "--sr-operators", "add,mul,atan"),
+        ("unknown operator(s) ['atan']", "give auto or names from", "sqrtabs"), ConfigError,
+        est_kw={"method": "nn-cc+sym+post-sr", "sr_options": {"operators": "add,mul,atan"}}),
+    Bad("sr-operators-without-binary", "base", ("--method", "sr", "--sr-operators", "tanh,abs"),
+        ("have no binary operator", "include at least 'add'"), ConfigError,
+        est_kw={"method": "sr", "sr_options": {"operators": "tanh,abs"}}),
     Bad("basis-for-unknown-curve", "base", ("--method", "parametric", "--basis", "f1=z; f3=z"),
         ("unknown curve(s) ['f3']", "f1, f2"), ConfigError, est_kw={"method": "parametric", "basis": "f1=z; f3=z"}),
     Bad("basis-unknown-symbol", "base", ("--method", "parametric", "--basis", "f1=y; f2=z"),

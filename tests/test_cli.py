@@ -236,3 +236,19 @@ def test_every_option_of_every_command_has_help_text():
     assert missing == []
     fit_help = sub.choices["fit"].format_help()
     assert "torch device of the neural fits" in fit_help and "do not draw curves.png" in fit_help
+
+
+def test_sr_operators_option_reaches_the_search_and_result_json(tmp_path, duffing_csv):
+    """--sr-operators: the list is the search's operator set and is recorded (settings and the SR digest);
+    without it the settings say auto (SR on a record without sticking then searches + - *)."""
+    out = tmp_path / "abs"
+    assert run(["fit", duffing_csv, "--method", "sr", "--sr-operators", "add, sub,MUL,abs", "--sr-generations", "5",
+                "--out", out, "--no-figure", "--quiet"]) == 0
+    info = json.loads((out / "result.json").read_text())["info"]
+    assert info["settings"]["sr_operators"] == ["add", "sub", "mul", "abs"]
+    assert info["operators"] == ["add", "sub", "mul", "abs"]
+    out = tmp_path / "auto"
+    assert run(["fit", duffing_csv, "--method", "sr", "--sr-generations", "5", "--out", out, "--no-figure",
+                "--quiet"]) == 0
+    info = json.loads((out / "result.json").read_text())["info"]
+    assert info["settings"]["sr_operators"] == "auto" and info["operators"] == ["add", "sub", "mul"]

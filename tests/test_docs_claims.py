@@ -448,3 +448,17 @@ def test_deviations_21_and_22_quote_the_committed_full_study():
     mixed = {s: (int((g["mixed_terms"] > 0).sum()), len(g)) for s, g in sr.groupby("system")}
     assert mixed == {"duffing": (5, 610), "stick-slip": (2, 610)}
     assert "5 of Duffing's 610 SR runs and 2 of stick-slip's had a mixed term" in text
+
+def test_the_post_sr_forms_figures_are_those_of_the_committed_run():
+    """docs/training-defaults.md quotes benchmarks/results/postsr_forms.json (bench_postsr_forms.py)."""
+    import json
+
+    doc = json.loads((ROOT / "benchmarks" / "results" / "postsr_forms.json").read_text())
+    text = _section(_page("training-defaults.md"), "## Post-SR operators", "## Harmonic terms")
+    for half in ("tune", "report"):
+        s = doc["summary"][half]
+        row = (f"| {s['recovered_before']} of {s['n_in_set']} | {s['recovered_after']} of {s['n_in_set']} | "
+               f"{s['mean_cpu_seconds_before']:.2f} | {s['mean_cpu_seconds_after']:.2f} |")
+        assert row in text, row
+    assert doc["summary"]["polynomial_truths_kept_polynomial_after"] == [7, 7] and "All 7 polynomial truths" in text
+    assert len(doc["curves"]) == 23 and sum(r["in_set"] for r in doc["curves"]) == 18

@@ -43,7 +43,7 @@ def test_make_engine_rejects_unknown_options():
         make_engine({"niterations": 10})
     with pytest.raises(ConfigError, match="operon, pysr"):
         make_engine({"engine": "gplearn"})
-    with pytest.raises(ConfigError, match="choose from"):
+    with pytest.raises(ConfigError, match=r"unknown operator\(s\) \[.frobnicate.\]; give auto or names from add, sub"):
         make_engine({"operators": ["add", "frobnicate"]})
     with pytest.raises(ConfigError, match="parsimony"):
         make_engine({"selection": "aic"})
@@ -85,6 +85,12 @@ def test_select_model_criteria():
     for crit in ("parsimony", "knee"):
         assert select_model(front, crit, 1000, 1.0) == 2
     assert select_model(front, "best", 1000, 1.0) == 4  # PySR's default keeps the most accurate here
+    # the front of a drag law 0.2 z + 0.15 z|z| (measured, Operon): the steepest step is to 0.538 z, whose MSE
+    # is still 2700 times the least; the step to the truth at complexity 10 gains nearly as much per unit
+    drag = [FrontEntry(1, 0.893, None), FrontEntry(3, 0.0221, None), FrontEntry(6, 0.0080, None),
+            FrontEntry(10, 8.29e-6, None), FrontEntry(12, 8.17e-6, None), FrontEntry(22, 7.94e-6, None)]
+    assert select_model(drag, "knee", 1000, 1.0) == 3
+    assert select_model(drag[:3] + [FrontEntry(10, 3e-4, None)], "knee", 1000, 1.0) == 1  # under 100x below
     with pytest.raises(ConfigError):
         select_model(front, "nope", 1000, 1.0)
 
@@ -184,7 +190,6 @@ def test_post_sr_clean_duffing_curve_recovers_terms():
     assert set(t) == {Z, Z**3}
     assert t[Z**3] == pytest.approx(1.0, rel=0.02) and t[Z] == pytest.approx(-1.0, rel=0.02)
     assert out.name == "f2" and out.domain == (-1.5, 1.45)
-    assert out.meta["seconds"] < 5.0 * 3  # generous: shared CI machines
 
 
 def test_post_sr_friction_curve_gives_steep_tanh():
@@ -356,9 +361,12 @@ def test_acceptance_stick_slip_20db_post_sr():
 
 
 def test_post_sr_never_makes_sindy_jump_stand_in_worse():
-    """A SINDy polynomial standing in for the Coulomb jump has no simple closed form: the knee of
-    its front is a straight line (f1 RMSE vs truth 0.40 instead of 0.20, data loss x3). The data
-    guard keeps the distilled model within 5 % of the source's data loss and its curves no worse."""
+    """A SINDy polynomial standing in for the Coulomb jump has no simple polynomial closed form: the knee of
+    the polynomial search is a straight line (f1 RMSE vs truth 0.40 instead of 0.20, data loss x3). The
+    closed-form search distils it into a smooth step a tanh(k z) (MSE 31 times smaller; measured
+    1.053 tanh(7.035 z), f1 RMSE 0.184); the data guard keeps the distilled model within 5 % of the
+    source's data loss and its curves no worse (f2: a member of the polynomial front, as the knee 1.26 z
+    alone breaks the bound)."""
     import charcurves as cc
     from charcurves.data._noise import corrupt
     from charcurves.metrics import curve_errors
@@ -376,10 +384,13 @@ def test_post_sr_never_makes_sindy_jump_stand_in_worse():
     assert e_post["f2"] <= 1.02 * e_src["f2"]
     assert post.info["loss_before_distillation"] == pytest.approx(src.loss, rel=1e-6)
     assert post.loss <= (1 + DATA_LOSS_TOLERANCE) * src.loss + 1e-12
-    guard = post.info["post_sr"]["f1"]["data_guard"]
-    assert guard.startswith("source curve kept") and "knee 1.77" in guard
-    z = src.curves["f1"].grid(200)
-    np.testing.assert_allclose(post.curves["f1"](z), src.curves["f1"](z), atol=1e-9)
+    f1, f2 = post.info["post_sr"]["f1"], post.info["post_sr"]["f2"]
+    assert "data_guard" not in f1 and f1["mode"] == "whole curve, closed-form search kept"
+    ((step, coef),) = _terms(post.curves["f1"].expression()).items()
+    assert step.func is sp.tanh and abs(coef) == pytest.approx(1.05, abs=0.05)
+    assert f1["searches"][0]["expression"].startswith("1.77")  # the straight line of the polynomial search
+    assert f2["data_guard"].startswith("front member kept") and f2["mode"] == "whole curve, polynomial search kept"
+    assert not post.curves["f2"].expression().atoms(sp.Function)
 
 
 # ------------------------------------------------------------------ issue 20: trigonometric laws
@@ -446,3 +457,64 @@ def test_parse_infix_of_a_deep_tanh_with_pi_returns_the_expression_on_the_caller
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14)
     # the same canonical form as an evaluated parse of an easy text (sorted terms, numbers first)
     assert str(parse_infix("(X2 * 0.5) + (X1 * X1)", [v, x])) == "v**2 + 0.5*x"
+
+
+# ------------------------------------------------------------------ closed forms beyond polynomials (issue 46)
+def _sampled(expr: str, domain, seed: int = 0, rel: float = 1e-3):
+    """Samples of a curve with an error of RMS ``rel`` times its range, as a learned curve would carry."""
+    from charcurves.curves import FittedCurve
+
+    z = np.linspace(*domain, 1000)
+    y = sp.lambdify(Z, sp.sympify(expr), "numpy")(z) * np.ones_like(z)
+    y = y + rel * np.ptp(y) * np.random.default_rng(seed).standard_normal(z.size)
+
+    class Sampled(FittedCurve):
+        kind = "samples"
+
+        def raw(self, zz):
+            return np.interp(np.asarray(zz, dtype=float), z, y)
+
+        @property
+        def pinned_at_zero(self):
+            return False
+
+        def to_spec(self):  # pragma: no cover - never saved
+            raise NotImplementedError
+
+    return Sampled("f1", "x'", tuple(domain))
+
+
+def test_post_sr_default_finds_drag_and_keeps_a_polynomial_a_polynomial():
+    """operators="auto": a polynomial search, then one with abs, tanh, sin, cos, exp, sqrtabs; the second is kept only
+    when its MSE is CLOSED_FORM_GAIN times smaller. On the drag law 0.5 z|z| the polynomial search's knee is 0.75 z
+    (MSE 160 times the closed form's); on z^3 - z the closed-form search offers nothing better (measured seed 0:
+    0.4999 z|z| and 1.000 z^3 - 1.000 z; about 3 s each)."""
+    from charcurves.symbolic import CLOSED_FORM_OPERATORS, post_sr_engine
+
+    engine = post_sr_engine({"generations": 10})  # a small budget (the default: 20)
+    drag = distill_curve(_sampled("0.5*z*Abs(z)", (-2.0, 2.0)), engine, random_state=0)
+    t = _terms(drag.expression())
+    assert set(t) == {Z * sp.Abs(Z)} and t[Z * sp.Abs(Z)] == pytest.approx(0.5, rel=0.01)
+    assert drag.meta["mode"] == "whole curve, closed-form search kept"
+    assert drag.meta["operators"] == list(CLOSED_FORM_OPERATORS)
+    poly_search, closed_search = drag.meta["searches"]
+    assert poly_search["operators"] == ["add", "sub", "mul"]
+    assert closed_search["mse"] * 2.0 < poly_search["mse"]
+
+    duffing = distill_curve(_sampled("z**3 - z", (-2.0, 2.0), seed=1), engine, random_state=0)
+    t = _terms(duffing.expression())
+    assert set(t) == {Z, Z**3} and t[Z**3] == pytest.approx(1.0, rel=0.01) and t[Z] == pytest.approx(-1.0, rel=0.02)
+    assert duffing.meta["mode"] == "whole curve, polynomial search kept"
+    assert duffing.meta["operators"] == ["add", "sub", "mul"]
+    assert [s["operators"] for s in duffing.meta["searches"]] == [["add", "sub", "mul"], list(CLOSED_FORM_OPERATORS)]
+
+
+def test_an_explicit_operator_set_runs_one_search_and_sqrtabs_reads_back():
+    from charcurves.symbolic import post_sr_engine
+
+    out = distill_curve(_sampled("sqrt(Abs(z))", (-2.0, 2.0)), post_sr_engine(), random_state=0,
+                        operators=("add", "sub", "mul", "sqrtabs"))
+    t = _terms(out.expression())
+    assert set(t) == {sp.sqrt(sp.Abs(Z))} and t[sp.sqrt(sp.Abs(Z))] == pytest.approx(1.0, rel=0.01)
+    assert out.meta["mode"] == "whole curve" and "searches" not in out.meta
+    assert out.meta["operators"] == ["add", "sub", "mul", "sqrtabs"]

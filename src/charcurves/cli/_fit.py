@@ -243,7 +243,8 @@ def cmd_fit(a) -> int:
 
         truth = get_system(a.truth, a.truth_variant).true_curves()
     sr_options = {k: v for k, v in (("engine", a.sr_engine), ("generations", a.sr_generations),
-                                    ("populations", a.sr_populations), ("max_size", a.sr_max_size)) if v is not None}
+                                    ("populations", a.sr_populations), ("max_size", a.sr_max_size),
+                                    ("operators", a.sr_operators)) if v is not None}
     refine_options = {k: v for k, v in (("hold", a.refine_hold), ("substeps", a.refine_substeps),
                                         ("segment_length", a.segment_length)) if v is not None}
     model = fit_and_write(traj, a.out, method=a.method, family=a.family, sym=a.sym, free_gain=a.free_gain,

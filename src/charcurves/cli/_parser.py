@@ -96,6 +96,10 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                    help=ranged("sr_populations", "symbolic regression: independent populations (PySR islands; Operon restarts; default 1)"))
     f.add_argument("--sr-max-size", type=cli_number("sr_max_size"), default=None,
                    help=ranged("sr_max_size", "largest expression size (default 20)"))
+    f.add_argument("--sr-operators", default=None,
+                   help="operators of post-SR and SR, comma-separated (e.g. add,sub,mul,abs,tanh; any of "
+                        "charcurves.symbolic.OPERATORS) or auto (default: post-SR searches + - * and then "
+                        "+ - * abs tanh sin cos exp sqrtabs per curve; SR + - *, tanh with sticking)")
     f.add_argument("--keep-sticking", action="store_true", help="fit samples where x' = 0 over a run too")
     f.add_argument("--time-col", default="t", help=_TIME_HELP)
     f.add_argument("--x-col", default="x", help="the position column (default x)")

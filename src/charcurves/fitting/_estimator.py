@@ -242,6 +242,10 @@ class CharacteristicCurves:
             check_number("snr_db", snr)
         if self.derivatives is not None and self.differentiator is not None and self.derivatives != self.differentiator:
             raise ConfigError("give the differentiator once: derivatives= is the older name of differentiator=")
+        if self.sr_options is not None:  # before any training: post-SR runs after it
+            from ..symbolic import make_engine
+
+            make_engine(self.sr_options)
         self._check_basis_cost()
 
     def _check_basis_cost(self) -> None:

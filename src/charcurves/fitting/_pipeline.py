@@ -207,6 +207,7 @@ def _finish(est, ctx: dict, records: list, refined: tuple[list, bool] | None = N
             "objective": "output-error" if use_oe[k] else "equation-error",
             "objective_requested": mode,
             "post_sr": est.wants_post_sr(),
+            **({"sr_operators": _sr_operators(est)} if est.wants_post_sr() or method.startswith("sr") else {}),
             "preset": preset.name,
             "symmetry": dict(sym),
             "jumps": list(jumps[k][0]),
@@ -216,6 +217,14 @@ def _finish(est, ctx: dict, records: list, refined: tuple[list, bool] | None = N
         }
         _check(est, ctx, m, records[k], k)
     return models
+
+
+def _sr_operators(est):
+    """The operator option of post-SR / SR as asked: "auto" or the list of names."""
+    from ..symbolic import operators_option
+
+    ops = operators_option(est.sr_options)
+    return "auto" if ops is None else list(ops)
 
 
 def _harmonic_terms(model, layout) -> dict:

@@ -23,8 +23,10 @@ Examples
 """
 
 from ._decompose import decompose
-from ._distill import POST_SR_OPTIONS, TRIG_TURNS, distill_curve, distill_curve_front, has_jump, post_sr_engine, turns
+from ._distill import (CLOSED_FORM_GAIN, POST_SR_OPTIONS, TRIG_TURNS, distill_curve, distill_curve_front, has_jump,
+                       polynomial_operators, post_sr_engine, turns)
 from ._engine import (
+    CLOSED_FORM_OPERATORS,
     DEFAULT_SR_OPTIONS,
     OPERATORS,
     POLY_OPERATORS,
@@ -41,6 +43,8 @@ from ._expressions import eval_expression, expression_complexity, parse_infix, p
 from ._selection import SELECTION_CRITERIA, FrontEntry, SRResult, select_model
 
 __all__ = [
+    "CLOSED_FORM_GAIN",
+    "CLOSED_FORM_OPERATORS",
     "DEFAULT_SR_OPTIONS",
     "OPERATORS",
     "POLY_OPERATORS",
@@ -64,6 +68,7 @@ __all__ = [
     "turns",
     "make_engine",
     "operators_option",
+    "polynomial_operators",
     "parse_infix",
     "polish_constants",
     "post_sr_engine",

@@ -3,8 +3,8 @@
 Each learned curve is evaluated on ``n`` evenly spaced points over its training range (the
 paper: 1000) and symbolic regression is run on ``z -> f(z)``; the result replaces the curve.
 
-Operator set ("auto", the default of ``sr_options["operators"]``), following the paper (no
-unary operator for Duffing, tanh for stick-slip) without running two searches per curve:
+Operator set ("auto", the default of ``sr_options["operators"]``): the paper's sets (no unary
+operator for Duffing, tanh for stick-slip), and beyond polynomials where the curve asks for it:
 
 * a neural curve with a learned jump (``NeuralFittedCurve`` with ``spec.jump``, added for
   records with sticking) is distilled *by parts*: its jump component ``mu tanh(z/eps)`` already
@@ -15,12 +15,18 @@ unary operator for Duffing, tanh for stick-slip) without running two searches pe
   (the network itself is built from tanh units). ``k = 1/eps`` is lowered to ``20 / min|z|``
   over the grid when larger: a jump narrower than that is a step on every grid point either
   way, and the lower k keeps forward simulations from becoming needlessly stiff;
-* any other curve with a jump at 0 -- a closed form containing tanh/sign/Abs, or samples in
-  which one grid step carries more than 5 % of the curve's range and more than 20x the median
-  step -- gets + - * and tanh;
-* every other curve gets + - * only.
+* every other curve gets two searches (issue 46): first the polynomial one -- + - *, plus tanh
+  for a curve with a jump at 0 (a closed form containing tanh/sign/Abs, or samples in which one
+  grid step carries more than 5 % of the curve's range and more than 20x the median step), plus
+  sin and cos for a curve that turns at least :data:`TRIG_TURNS` times -- then one with
+  :data:`~charcurves.symbolic.CLOSED_FORM_OPERATORS` (+ - * abs tanh sin cos exp sqrtabs) added.
+  The closed-form search's pick is kept only when its MSE on the samples is
+  :data:`CLOSED_FORM_GAIN` times smaller than the polynomial pick's, so a polynomial truth stays a
+  polynomial (the wider set offers look-alikes such as ``147 z - 728 sin(0.2 z)`` for z^3 - z that
+  fit no better). Both searches are in ``meta["searches"]``; ``meta["operators"]`` is the kept one's.
+  Measured in ``benchmarks/bench_postsr_forms.py`` (docs/training-defaults.md, "Post-SR operators").
 
-An explicit ``sr_options["operators"]`` overrides all this (whole-curve SR with that set).
+An explicit ``sr_options["operators"]`` overrides all this (one whole-curve search with that set).
 """
 
 from __future__ import annotations
@@ -32,10 +38,11 @@ import numpy as np
 
 from .._errors import ConfigError
 from ..curves import FittedCurve, SymbolicFittedCurve, jump_log_eps
-from ._engine import POLY_OPERATORS, TANH_OPERATORS, SymbolicRegressionEngine, make_engine
+from ._selection import REL_MSE_FLOOR
+from ._engine import CLOSED_FORM_OPERATORS, POLY_OPERATORS, TANH_OPERATORS, SymbolicRegressionEngine, make_engine
 
 __all__ = ["distill_curve", "distill_curve_front", "has_jump", "turns", "TRIG_TURNS", "POST_SR_OPTIONS",
-           "post_sr_engine"]
+           "post_sr_engine", "polynomial_operators", "CLOSED_FORM_GAIN"]
 
 #: Search settings of post-SR that differ from :data:`DEFAULT_SR_OPTIONS` (``sr_options`` given to a
 #: fit override them): a learned curve is a smooth function sampled without noise, so the search
@@ -64,6 +71,11 @@ def post_sr_engine(sr_options: dict | None = None) -> SymbolicRegressionEngine:
 #: A curve that turns (changes direction by more than a tenth of its range) at least this many
 #: times over its domain oscillates: the automatic operator set then adds sin and cos.
 TRIG_TURNS = 4
+
+#: The closed-form search's pick replaces the polynomial search's only when its MSE on the curve's
+#: samples is this many times smaller: a polynomial truth stays a polynomial (the wider set offers
+#: stand-ins such as ``147 z - 728 sin(0.2 z)`` for z^3 - z that fit no better than the truth).
+CLOSED_FORM_GAIN = 2.0
 
 #: One grid step carrying more than this share of the curve's range (and ...)
 _JUMP_RANGE_SHARE = 0.05
@@ -123,8 +135,10 @@ def distill_curve(curve: FittedCurve, engine: SymbolicRegressionEngine | None = 
         Grid points over ``curve.domain`` (the paper: 1000).
     random_state : int
     operators : sequence of str, optional
-        Operator set; by default + - * plus tanh when :func:`has_jump`, plus sin and cos when the
-        curve oscillates (:func:`turns` at least :data:`TRIG_TURNS` times over its domain).
+        Operator set of one search; by default two searches (the module's notes): + - * plus tanh
+        when :func:`has_jump`, plus sin and cos when the curve oscillates (:func:`turns` at least
+        :data:`TRIG_TURNS` times over its domain), then the same with
+        :data:`~charcurves.symbolic.CLOSED_FORM_OPERATORS`.
 
     Returns
     -------
@@ -203,6 +217,7 @@ def distill_curve_front(curve: FittedCurve, engine, *, n: int, random_state: int
     jump = has_jump(curve, z, y)
     zs = sp.Symbol("z")
     parts = _neural_jump(curve, z) if operators is None else None
+    searches: list = []
     if parts is not None:
         jump_vals, _mu, k = parts
         res = engine.fit(z[:, None], y - jump_vals, ["z"], random_state=int(random_state), operators=POLY_OPERATORS,
@@ -210,14 +225,16 @@ def distill_curve_front(curve: FittedCurve, engine, *, n: int, random_state: int
         expr, mse = _refit_with_jump(res.expression, k, z, y)
         front = [_refit_with_jump(e, k, z, y)[0] for _c, _m, e in res.front]
         mode = "smooth part + learned jump"
-    else:
-        ops = tuple(operators) if operators is not None else (TANH_OPERATORS if jump else POLY_OPERATORS)
-        if operators is None and turns(y) >= TRIG_TURNS:  # an oscillating curve (a pendulum's sin x)
-            ops = ops + ("sin", "cos")
-        res = engine.fit(z[:, None], y, ["z"], random_state=int(random_state), operators=ops, context="curve")
+    elif operators is not None:
+        res = engine.fit(z[:, None], y, ["z"], random_state=int(random_state), operators=tuple(operators),
+                         context="curve")
         expr, mse = res.expression, res.mse
         front = [e for _c, _m, e in res.front]
         mode = "whole curve"
+    else:
+        res, front, searches = _auto_search(engine, z, y, jump, int(random_state))
+        expr, mse = res.expression, res.mse
+        mode = "whole curve, " + ("closed-form" if res is searches[1] else "polynomial") + " search kept"
     if expr.free_symbols - {zs}:  # pragma: no cover - engines only see z
         raise ConfigError(f"post-SR of {curve.name} returned {expr}, which is not a function of z alone")
     if not expr.free_symbols:
@@ -225,8 +242,44 @@ def distill_curve_front(curve: FittedCurve, engine, *, n: int, random_state: int
     meta = res.summary()
     meta.update({"source_kind": curve.kind, "n_grid": int(n), "jump_detected": bool(jump), "mode": mode,
                  "expression": str(expr), "distillation_rmse": float(np.sqrt(mse))})
+    if parts is None and operators is None:
+        meta["searches"] = [{"operators": list(r.operators), "expression": str(r.expression), "mse": float(r.mse),
+                             "seconds": float(r.seconds)} for r in searches]
+        meta["seconds"] = float(sum(r.seconds for r in searches))
+        meta["search_seconds"] = float(sum(r.search_seconds for r in searches))
     front = [e for e in front if not (e.free_symbols - {zs})]
     return SymbolicFittedCurve(curve.name, curve.argument, curve.domain, expr, 0.0, meta), front
+
+
+def polynomial_operators(jump: bool, y: np.ndarray) -> tuple[str, ...]:
+    """The first search of the automatic choice: + - *, tanh for a jump, sin and cos for a curve
+    that oscillates (:func:`turns` at least :data:`TRIG_TURNS` times).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.symbolic import polynomial_operators
+    >>> z = np.linspace(-2, 2, 1000)
+    >>> polynomial_operators(False, z**3 - z), polynomial_operators(True, np.sign(z)), polynomial_operators(False, np.sin(25 * z))
+    (('add', 'sub', 'mul'), ('add', 'sub', 'mul', 'tanh'), ('add', 'sub', 'mul', 'sin', 'cos'))
+    """
+    ops = TANH_OPERATORS if jump else POLY_OPERATORS
+    return ops + ("sin", "cos") if turns(y) >= TRIG_TURNS else ops
+
+
+def _auto_search(engine: SymbolicRegressionEngine, z: np.ndarray, y: np.ndarray, jump: bool, random_state: int):
+    """Both searches of ``operators="auto"``: (result kept, front, both results). The front (what the data
+    guard of post-SR walks, simplest first) is the kept search's, then the other's: a curve whose pick
+    breaks the guard moves up its own search's front before it takes the other family's forms."""
+    first = polynomial_operators(jump, y)
+    wide = tuple(dict.fromkeys(CLOSED_FORM_OPERATORS + first))
+    results = [engine.fit(z[:, None], y, ["z"], random_state=random_state, operators=ops, context="curve")
+               for ops in (first, wide)]
+    poly, closed = results
+    floor = REL_MSE_FLOOR * float(np.var(y))  # round-off is no gain (clean samples of a polynomial)
+    keep = closed if max(closed.mse, floor) * CLOSED_FORM_GAIN < max(poly.mse, floor) else poly
+    other = poly if keep is closed else closed
+    return keep, [e for r in (keep, other) for _c, _m, e in r.front], results
 
 
 def _neural_jump(curve: FittedCurve, z: np.ndarray):

@@ -93,18 +93,24 @@ __all__ = [
     "OPERATORS",
     "POLY_OPERATORS",
     "TANH_OPERATORS",
+    "CLOSED_FORM_OPERATORS",
     "SELECTION_CRITERIA",
     "DEFAULT_SR_OPTIONS",
     "SR_OPTION_KEYS",
 ]
 
 #: Operator names accepted by ``sr_options["operators"]`` (binary: add sub mul div pow; the rest unary).
-OPERATORS = ("add", "sub", "mul", "div", "pow", "square", "tanh", "sin", "cos", "exp", "log", "sqrt", "abs")
+OPERATORS = ("add", "sub", "mul", "div", "pow", "square", "tanh", "sin", "cos", "exp", "log", "sqrt", "abs",
+             "sqrtabs")
 _BINARY = ("add", "sub", "mul", "div", "pow")
 #: The paper's operator sets: binary + - * (no division: it can create singularities in forward
 #: simulations), plus tanh where a jump (dry friction) must be expressed.
 POLY_OPERATORS = ("add", "sub", "mul")
 TANH_OPERATORS = ("add", "sub", "mul", "tanh")
+#: The second search of post-SR's automatic operator choice (:mod:`charcurves.symbolic._distill`):
+#: closed forms beyond polynomials -- drag z|z| (abs), saturation (tanh), periodic (sin, cos),
+#: exponential hardening (exp) and square-root laws (``sqrtabs`` = sqrt(|u|), defined everywhere).
+CLOSED_FORM_OPERATORS = ("add", "sub", "mul", "abs", "tanh", "sin", "cos", "exp", "sqrtabs")
 
 #: Defaults of ``sr_options``. Chosen by measurement (the Notes of this module): with the
 #: search on a 400-point subsample, one Operon population of 300 evolved for 40 generations
@@ -135,7 +141,8 @@ def check_operators(ops) -> tuple[str, ...]:
         raise ConfigError(f"operators must be 'auto' or a list of names like ('add', 'sub', 'mul', 'tanh'), got {ops!r}") from None
     bad = [o for o in ops if o not in OPERATORS]
     if bad:
-        raise ConfigError(f"unknown operator(s) {bad}; choose from {', '.join(OPERATORS)}")
+        raise ConfigError(f"unknown operator(s) {bad}; give auto or names from {', '.join(OPERATORS)} "
+                          "(e.g. add,sub,mul,abs,tanh)")
     if not any(o in _BINARY for o in ops):
         raise ConfigError(f"operators {ops} have no binary operator; include at least 'add'")
     return ops
@@ -307,7 +314,7 @@ def _memo_key(engine, X: np.ndarray, y: np.ndarray, names, random_state: int, op
 
 _OPERON_SYMBOLS = {"add": "add", "sub": "sub", "mul": "mul", "div": "div", "pow": "pow", "square": "square",
                    "tanh": "tanh", "sin": "sin", "cos": "cos", "exp": "exp", "log": "log", "sqrt": "sqrt",
-                   "abs": "abs"}
+                   "abs": "abs", "sqrtabs": "sqrtabs"}
 
 
 class OperonEngine(SymbolicRegressionEngine):

@@ -43,7 +43,9 @@ class PySREngine(SymbolicRegressionEngine):
         except Exception:  # ImportError, or Julia failing to start inside pysr's import
             raise ConfigError(_PYSR_MISSING) from None
         binary = [_PYSR_BINARY[o] for o in operators if o in _PYSR_BINARY]
-        unary = [o for o in operators if o not in _PYSR_BINARY]
+        # PySR has no sqrt(|u|) node: offer sqrt and abs, whose composition is the same
+        unary = list(dict.fromkeys(u for o in operators if o not in _PYSR_BINARY
+                                   for u in (("sqrt", "abs") if o == "sqrtabs" else (o,))))
         safe = [f"x{i}" for i in range(X.shape[1])]
         import inspect
 

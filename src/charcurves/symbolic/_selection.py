@@ -13,7 +13,7 @@ from .._errors import ConfigError
 from ._expressions import canonical, eval_expression, expression_complexity, n_constants, polish_constants, split_terms
 
 __all__ = ["FrontEntry", "SRResult", "Candidate", "candidates_from", "has_inner_constants", "pareto", "select_model",
-           "SELECTION_CRITERIA", "AUTO_SELECTION", "BIC_MARGIN", "PARSIMONY", "REL_MSE_FLOOR"]
+           "SELECTION_CRITERIA", "AUTO_SELECTION", "BIC_MARGIN", "KNEE_RIVAL", "KNEE_UNFINISHED", "PARSIMONY", "REL_MSE_FLOOR"]
 
 #: Model-selection criteria on the Pareto front; see :func:`select_model`.
 SELECTION_CRITERIA = ("auto", "knee", "bic", "parsimony", "best")
@@ -27,6 +27,12 @@ AUTO_SELECTION = {"curve": "knee", "data": "bic"}
 BIC_MARGIN = 10.0
 #: "parsimony": a fixed exchange rate, one unit of complexity must lower the MSE by exp(0.5).
 PARSIMONY = 0.5
+
+#: "knee": a knee whose MSE is more than this times the least on the front is not the structure yet
+#: (the front goes on to fit the curve far better); the selection moves on to the knee after it.
+KNEE_UNFINISHED = 100.0
+#: ... and a later step gains at least this share of the knee's -Δlog(MSE) per unit of complexity.
+KNEE_RIVAL = 0.5
 
 #: Relative MSE floor (times var(y)): differences below RMSE = 1e-6 std(y) are round-off, not
 #: structure; without the floor, models at the numerical floor of clean data would be ranked
@@ -226,7 +232,11 @@ def select_model(front: Sequence, criterion: str, n: int, var_y: float, context:
     ``"knee"``
         The largest relative MSE drop per added complexity,
         ``-Δlog(MSE) / Δcomplexity`` between neighbours on the front (PySR's "score"): the
-        step after which adding terms buys little.
+        step after which adding terms buys little. A knee whose MSE is still more than 100 times
+        (``KNEE_UNFINISHED``) the least on the front, when a later step gains at least half as
+        much per unit (``KNEE_RIVAL``), is only a first step (the linear part of a drag law
+        ``0.2 z + 0.15 z|z|``, which explains 97 % of its variance): then that later step is
+        taken, and so on.
     ``"parsimony"``
         Minimise ``log(MSE) + 0.5 complexity`` (a fixed exchange rate): fine on samples of a
         learned curve, but on noisy data the total gain of the true model can be smaller than
@@ -275,7 +285,16 @@ def select_model(front: Sequence, criterion: str, n: int, var_y: float, context:
     score[1:] = -np.diff(np.log(mse)) / np.maximum(np.diff(cx), 1.0)
     if criterion == "best":
         score = np.where(mse <= 1.5 * mse.min(), score, -np.inf)
-    return int(np.argmax(score))
+    pick = int(np.argmax(score))
+    # "knee": a knee whose MSE is still KNEE_UNFINISHED times the front's least, followed by a step
+    # nearly as steep (KNEE_RIVAL), is the first of two structural steps (the linear part of a drag law
+    # 0.2 z + 0.15 z|z|); terms that follow a learned curve's wiggles gain far less per unit
+    while criterion == "knee" and mse[pick] > KNEE_UNFINISHED * mse.min() and pick < len(front) - 1:
+        later = pick + 1 + int(np.argmax(score[pick + 1:]))
+        if score[later] < KNEE_RIVAL * score[pick]:
+            break
+        pick = later
+    return pick
 
 
 # ---------------------------------------------------------------------------------------------
