@@ -449,6 +449,7 @@ def test_deviations_21_and_22_quote_the_committed_full_study():
     assert mixed == {"duffing": (5, 610), "stick-slip": (2, 610)}
     assert "5 of Duffing's 610 SR runs and 2 of stick-slip's had a mixed term" in text
 
+
 def test_the_post_sr_forms_figures_are_those_of_the_committed_run():
     """docs/training-defaults.md quotes benchmarks/results/postsr_forms.json (bench_postsr_forms.py)."""
     import json

@@ -15,6 +15,7 @@ from .._errors import ConfigError, NotFittedError
 from ._methods import METHODS, check_method_options, method_curve, parse_basis_option, parse_symmetry
 from ._model import FittedModel
 from ._presets import get_preset
+from ._priors import name_prior_in_warnings, priors_record
 
 __all__ = ["CharacteristicCurves", "fit", "MAX_SEED"]
 
@@ -171,7 +172,7 @@ class CharacteristicCurves:
         from ._train import torch_threads
 
         self.check()  # the thread count among the rest, before it is used
-        from ._symmetry import fit_many_auto, name_prior_in_warnings, priors_record
+        from ._symmetry import fit_many_auto
 
         with torch_threads(self.threads):
             if self.tests_priors():  # nothing asked: test the parities, impose what the record supports

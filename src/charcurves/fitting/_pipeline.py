@@ -24,6 +24,7 @@ from ._fit_path import fit_records, fitter_kind, resolve_jumps, sticking_masks
 from ._methods import METHODS, check_method_options
 from ._objectives import resolve_objective
 from ._self_check import derivative_noise, measured_state_noise, self_check
+from ._priors import priors_record
 
 __all__ = ["run_pipeline", "raw_fit", "fit_with_post_sr", "check_device", "differentiator_used"]
 
@@ -152,7 +153,6 @@ def fit_with_post_sr(plain, distilled, records, seeds=None) -> tuple[list, list]
         m.info = copy.deepcopy(m.info)
     out = (_finish(plain, ctx, records, refined),
            _finish(distilled, dict(ctx, method=distilled.resolve()[3]), records, (copies, stop)))
-    from ._symmetry import priors_record
 
     for est, fitted in zip((plain, distilled), out):
         for m in fitted:
