@@ -5,6 +5,12 @@ equation-error loss is near the noise floor (:func:`charcurves.data.noise_floor`
 selection's inner loop uses: Savitzky-Golay residuals of the forcing and of a measured x'', or a
 given SNR). A loss far above the floor (ratio > :data:`SELF_CHECK_FACTOR`) means the fit missed
 something; the fit then warns, naming the likely causes in order and what to try for each.
+
+A loss near the floor can still hide a misfit of the curves' shape (a cubic standing in for
+v|v|, an odd curve for an asymmetric spring): :func:`residual_check` runs the residual tests of
+system identification (:mod:`._residual_tests`) on each equation's residual -- a binned test
+against each curve's argument, the cross-correlation with the input and, where a correct model
+leaves white residuals, whiteness -- and warns for each failed test, naming the curve and the cause.
 """
 
 from __future__ import annotations
@@ -14,8 +20,9 @@ from typing import Any
 import numpy as np
 
 from ..data import REL_FLOOR, equation_floors, noise_variance
+from ._residual_tests import binned_test, input_correlation, whiteness
 
-__all__ = ["self_check", "SELF_CHECK_FACTOR", "self_check_warning"]
+__all__ = ["RESIDUAL_LEVEL", "residual_check", "self_check", "SELF_CHECK_FACTOR", "self_check_warning"]
 
 #: a loss more than this multiple of the noise floor gets a warning (the inner loop of model
 #: selection accepts 1.5; this bound flags fits that clearly failed, not marginal ones)
@@ -23,6 +30,11 @@ SELF_CHECK_FACTOR = 10.0
 #: a measured x or x' column whose Savitzky-Golay noise variance is below this fraction of its
 #: variance (an SNR above 50 dB) is taken as clean by :func:`measured_state_noise`
 CLEAN_COLUMN = 1e-5
+#: the residual tests' level: the chance that a well-specified fit fails any of its tests
+#: (Bonferroni: each of the n tests of a fit runs at RESIDUAL_LEVEL / n)
+RESIDUAL_LEVEL = 0.01
+#: quantile bins of a curve's argument in the binned test (fewer on short records: 50 samples a bin)
+RESIDUAL_BINS = 10
 
 
 def _equation_losses(model, record, mask) -> list[float]:
@@ -211,7 +223,12 @@ def self_check(model, record, mask=None, *, estimated: bool = False, snr_db: flo
              "state_noise_counted": bool(oe is not None or state_noise is not None)}
     if oe is not None:
         check["equation_error"] = ee
+    check["residual_tests"] = residual_check(model, record, mask, white_expected=not estimated and oe is None)
     model.info["self_check"] = check
+    if not model.info.get("interrupted"):
+        model.info["warnings"] = list(model.info.get("warnings", [])) + check["residual_tests"]["warnings"]
+        if not model.info["warnings"]:
+            del model.info["warnings"]
     if not check["passed"] and not model.info.get("interrupted"):
         k = int(np.argmax(ratios))
         label = f"{k + 1} of {len(ratios)}" if len(ratios) > 1 else ""
@@ -219,3 +236,93 @@ def self_check(model, record, mask=None, *, estimated: bool = False, snr_db: flo
             self_check_warning(ratios[k], used["noise_floor"][k], used["floor_source"], label,
                                output_error=oe is not None)]
     return check
+
+
+def _equation_parts(model, record, mask):
+    """Per equation: its residual, its input and the arguments of the curves that enter it (masked)."""
+    r = np.asarray(model.force_residual(record), dtype=float)
+    r = r.reshape(r.shape[0], -1)
+    keep = np.asarray(mask, bool) if mask is not None and len(mask) == r.shape[0] else np.ones(r.shape[0], bool)
+    template = model.template
+    D = template.design(record)
+    n, E = D["n"], D["E"]
+    args = D["args"]
+    parts = []
+    for e in range(E):
+        rows = slice(e * n, (e + 1) * n)
+        curves = {c: np.asarray(z, dtype=float)[keep] for c, z in args.items()
+                  if np.any(np.asarray(D["mult"][c], dtype=float)[rows] != 0)}
+        parts.append((r[keep, e], np.asarray(D["F"], dtype=float)[rows][keep], curves))
+    return parts
+
+
+def _prior(model, curve: str) -> str | None:
+    sym = ((model.info.get("settings") or {}).get("symmetry") or {}).get(curve)
+    return str(sym) if sym and str(sym) not in ("none", "None") else None
+
+
+def _residual_warning(model, test: dict, level: float) -> str:
+    """One line for a failed residual test: the curve (or input), the test, the likely cause and the fix."""
+    where = f" of equation {test['equation']}" if test.get("equations", 1) > 1 else ""
+    p = f"p = {test['p_value']:.2g} < {level:.2g}"
+    if test["test"] == "binned":
+        curve, arg = test["curve"], test["argument"]
+        prior = _prior(model, curve)
+        fix = (f"its prior ({prior}) is wrong for this record -- try --sym none or --sym auto; or " if prior else "")
+        return (f"self-check: the residual{where} is a function of {arg}, the argument of {curve} (binned test: "
+                f"the residual's means in {test['bins']} quantile bins of {arg} differ, {p}); {curve} misses a "
+                f"shape of its law: {fix}the curve's shape is one its representation cannot take -- try a more "
+                "flexible one (--method nn-cc, a larger --basis or poly-cc degree)")
+    if test["test"] == "input":
+        return (f"self-check: the residual{where} is correlated with the input F (cross-correlation at lag "
+                f"{test['at_lag']}, {p}): a term of the input's dynamics is missing or the gain is wrong -- "
+                "run `charcurves select`, write the term into --equation, or learn the gain (--free-gain)")
+    return (f"self-check: the residual{where} is not white (Ljung-Box over {test['dof']} lags, {p}), though the "
+            "record's derivatives are measured: dynamics the equation does not hold (a missing term or state) or "
+            "coloured noise on the measured columns -- run `charcurves select` or write the term into --equation")
+
+
+def residual_check(model, record, mask=None, *, white_expected: bool, level: float = RESIDUAL_LEVEL) -> dict:
+    """The residual tests of each equation of ``model`` on ``record`` (the prepared record of the fit,
+    sticking samples left out by ``mask``): the binned test against each curve's argument, the
+    cross-correlation with the input (when it varies) and, with ``white_expected`` (equation error
+    on the record's own derivative columns, where a correct model leaves the white noise of the
+    measured columns), whiteness. The residual is the equation residual of the final curves; for
+    a fit by output error (or on estimated derivatives) it is correlated over neighbouring samples by
+    the differentiator, which the binned and cross-correlation tests allow for (their AR models)
+    and whiteness cannot, so it is not applied there.
+
+    Returns ``{"level", "per_test_level", "tests", "whiteness", "passed", "warnings"}``: each test
+    with its p-value and ``passed`` (p at least ``level`` over the number of tests).
+    """
+    parts = _equation_parts(model, record, mask)
+    noisy_F = getattr(record, "F", None)
+    tests: list[dict] = []
+    E = len(parts)
+    for e, (r, F, curves) in enumerate(parts):
+        base = {"equation": e + 1, "equations": E}
+        if r.size < 4 * RESIDUAL_BINS:
+            continue
+        if white_expected:
+            tests.append({**base, "test": "whiteness", **whiteness(r)})
+        if np.ptp(F) > 1e-12 * max(1.0, float(np.max(np.abs(F)))):
+            s2 = noise_variance(F) if noisy_F is not None else 0.0
+            s2 = s2 if s2 > CLEAN_COLUMN * float(np.var(F)) else 0.0
+            tests.append({**base, "test": "input", **input_correlation(r, F, input_noise=s2, gain=float(model.gain))})
+        bins = int(max(3, min(RESIDUAL_BINS, r.size // 50)))
+        for c, z in curves.items():
+            if np.ptp(z) > 0:
+                res = binned_test(r, z, bins=bins)
+                res.pop("edges")
+                res["z_scores"] = [round(v, 3) for v in res["z_scores"]]
+                tests.append({**base, "test": "binned", "curve": c, "argument": model.template.arguments[c], **res})
+    each = level / max(len(tests), 1)
+    for t in tests:
+        t["passed"] = bool(t["p_value"] >= each)
+    warnings = [_residual_warning(model, t, each) for t in tests if not t["passed"]]
+    for t in tests:
+        t.pop("equations")
+    return {"level": level, "per_test_level": each, "tests": tests,
+            "whiteness": "applied" if white_expected else
+            "not applied: the residual of estimated derivatives or of an output-error fit is correlated by nature",
+            "passed": bool(all(t["passed"] for t in tests)), "warnings": warnings}
