@@ -238,8 +238,30 @@ def self_check(model, record, mask=None, *, estimated: bool = False, snr_db: flo
     return check
 
 
+def _features(curve, z: np.ndarray) -> np.ndarray | None:
+    """The columns a curve linear in its parameters is a combination of, at ``z`` (None for neural and
+    symbolic curves): each basis function (coefficient vector e_k) evaluated through the curve itself."""
+    from ..curves import BasisFittedCurve, LinearFittedCurve
+
+    if isinstance(curve, BasisFittedCurve):
+        return np.column_stack([BasisFittedCurve(curve.name, curve.argument, curve.domain, [b], [1.0])(z)
+                                for b in curve.basis])
+    if isinstance(curve, LinearFittedCurve):
+        k = curve.coefficients.size
+        return np.column_stack([LinearFittedCurve(curve.name, curve.argument, curve.domain, curve.representation,
+                                                  np.eye(k)[j], center=curve.center, half_width=curve.half_width)(z)
+                                for j in range(k)])
+    return None
+
+
 def _equation_parts(model, record, mask):
-    """Per equation: its residual, its input and the arguments of the curves that enter it (masked)."""
+    """Per equation: its residual, its input and the arguments of the curves that enter it (masked).
+
+    The residual is taken orthogonal to what the representations could still change: the columns of
+    the curves linear in their parameters (times their coefficients in the equation), a constant and,
+    with a free gain, the input. An equation-error fit by least squares leaves such a residual
+    already; a fit by output error leaves in it the (small, but on thousands of samples visible)
+    change of coefficients that output error makes, which is no misfit of the curves' shape."""
     r = np.asarray(model.force_residual(record), dtype=float)
     r = r.reshape(r.shape[0], -1)
     keep = np.asarray(mask, bool) if mask is not None and len(mask) == r.shape[0] else np.ones(r.shape[0], bool)
@@ -252,7 +274,15 @@ def _equation_parts(model, record, mask):
         rows = slice(e * n, (e + 1) * n)
         curves = {c: np.asarray(z, dtype=float)[keep] for c, z in args.items()
                   if np.any(np.asarray(D["mult"][c], dtype=float)[rows] != 0)}
-        parts.append((r[keep, e], np.asarray(D["F"], dtype=float)[rows][keep], curves))
+        F = np.asarray(D["F"], dtype=float)[rows][keep]
+        cols = [np.ones(int(keep.sum()))] + ([F] if getattr(template, "free_gain", False) else [])
+        for c, z in curves.items():
+            phi = _features(model.curves[c], z)
+            if phi is not None:
+                cols.extend((phi * np.asarray(D["mult"][c], dtype=float)[rows][keep][:, None]).T)
+        X = np.column_stack(cols)
+        re = r[keep, e] - X @ np.linalg.lstsq(X, r[keep, e], rcond=None)[0]
+        parts.append((re, F, curves))
     return parts
 
 
