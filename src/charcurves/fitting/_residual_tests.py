@@ -9,7 +9,7 @@ Three statistics of a residual series ``r`` (one equation's residual over time):
   both prewhitened with the residual's AR filter; the largest, Bonferroni over the lags. Lag 0 is
   left out: a residual ``... - g F`` holds the noise of the measured F itself, so a correct model
   correlates with F at lag 0;
-* :func:`binned_test` -- the residual's means in K quantile bins of a curve's argument; equal means
+* :func:`binned_test` (:func:`binned_tests` for several arguments at once) -- the residual's means in K quantile bins of a curve's argument; equal means
   (a residual that is no function of the argument) give a Wald statistic ~ F(K - 1, N - K), by
   generalised least squares with an AR model of the residual, so that a residual correlated over
   neighbouring samples (estimated derivatives) is not taken for a misfit.
@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ar_whitener", "autocorrelation", "binned_test", "input_correlation", "whiteness"]
+__all__ = ["ar_whitener", "autocorrelation", "binned_test", "binned_tests", "input_correlation", "whiteness"]
 
 #: two-sided 1 % point of the normal distribution: a lag of a white series' normalised
 #: autocorrelation lies outside +-Z99/sqrt(N) with probability 1 %
@@ -85,7 +85,9 @@ def _whiten(filt: np.ndarray, *arrays):
 
 
 def whiteness(r, lags: int = 20) -> dict:
-    """Ljung-Box test of ``r`` over lags 1..``lags``.
+    """Portmanteau (Ljung-Box) test of ``r`` over lags 1..``lags``, each lag's autocovariance over its
+    heteroscedasticity-robust standard error, ``Q = sum_k (sum_t r_t r_(t-k))^2 / sum_t r_t^2 r_(t-k)^2``
+    ~ chi-square(lags) for an uncorrelated series.
 
     Returns ``{"statistic", "dof", "p_value", "lags_outside"}`` (the share of lags whose normalised
     autocorrelation lies outside +-2.58/sqrt(N), 1 % for a white series).
@@ -107,7 +109,11 @@ def whiteness(r, lags: int = 20) -> dict:
     n = r.size
     m = int(min(lags, n // 5))
     rho = autocorrelation(r, m)[1:]
-    q = float(n * (n + 2) * np.sum(rho ** 2 / (n - np.arange(1, m + 1))))
+    d = r - float(np.mean(r))
+    # each lag's sum over its heteroscedasticity-robust standard error: noise in a curve's argument
+    # makes the residual's variance vary with the state, which inflates the plain Ljung-Box statistic
+    q = float(sum(np.dot(d[k:], d[:-k]) ** 2 / max(float(np.dot(d[k:] ** 2, d[:-k] ** 2)), 1e-300)
+                  for k in range(1, m + 1)))
     return {"statistic": q, "dof": m, "p_value": float(stats.chi2.sf(q, m)),
             "lags_outside": float(np.mean(np.abs(rho) > Z99 / np.sqrt(n)))}
 
@@ -160,16 +166,91 @@ def input_correlation(r, u, lags: int = 20, *, input_noise: float = 0.0, gain: f
             "whitening_order": len(filt) - 1}
 
 
+def _bin_indices(z: np.ndarray, bins: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each sample's quantile bin of ``z`` (empty bins dropped) and the bins' sample counts."""
+    edges = np.unique(np.quantile(z, np.linspace(0.0, 1.0, int(bins) + 1)))
+    idx = np.clip(np.searchsorted(edges, z, side="right") - 1, 0, max(len(edges) - 2, 0))
+    counts = np.bincount(idx, minlength=max(len(edges) - 1, 1))
+    keep = counts > 0
+    return np.cumsum(keep)[idx] - 1, counts[keep]
+
+
+def binned_tests(r, arguments: dict, bins: int = 10) -> dict:
+    """:func:`binned_test` of ``r`` against several arguments at once (one per curve): the residual is
+    regressed on the bins of all of them together (an additive model: a constant and, per argument,
+    its bins but the first), so that a misfit along one argument is not noise in the test of another.
+
+    Returns ``{name: result}`` with :func:`binned_test`'s keys for each argument.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.fitting import binned_tests
+    >>> rng = np.random.default_rng(3)
+    >>> t = np.linspace(0, 60, 3000)
+    >>> x, v = np.sin(t), np.cos(1.7 * t)
+    >>> res = binned_tests(rng.normal(size=3000) + np.abs(x), {"x": x, "v": v})
+    >>> bool(res["x"]["p_value"] < 1e-6), bool(res["v"]["p_value"] > 0.001)
+    (True, True)
+    """
+    from scipy import stats
+
+    r = np.asarray(r, dtype=float)
+    n = r.size
+    names = list(arguments)
+    blocks, cols, layout = [], [np.ones(n)], {}
+    for name in names:
+        idx, counts = _bin_indices(np.asarray(arguments[name], dtype=float), bins)
+        K = counts.size
+        B = np.zeros((n, K))
+        B[np.arange(n), idx] = 1.0
+        layout[name] = (len(cols), K, counts)
+        cols.extend(B[:, 1:].T)
+        blocks.append(B)
+    X = np.column_stack(cols)
+    beta = np.linalg.lstsq(X, r, rcond=None)[0]
+    u = r - X @ beta
+    if not np.any(u):
+        return {name: {"statistic": 0.0, "dof": layout[name][1] - 1, "p_value": 1.0, "bins": layout[name][1],
+                       "z_scores": [0.0] * layout[name][1], "whitening_order": 0} for name in names}
+    for _ in range(2):  # feasible GLS: the AR model of the residual around the bin means, then the means
+        filt = ar_whitener(u)
+        rf, Xf = _whiten(filt, r, X)
+        beta = np.linalg.lstsq(Xf, rf, rcond=None)[0]
+        u = r - X @ beta
+    e = rf - Xf @ beta
+    dof = max(rf.size - X.shape[1], 1)
+    V = float(e @ e) / dof * np.linalg.pinv(Xf.T @ Xf)
+    out = {}
+    for name in names:
+        start, K, counts = layout[name]
+        if K < 2:
+            out[name] = {"statistic": 0.0, "dof": 0, "p_value": 1.0, "bins": K, "z_scores": [0.0] * K,
+                         "whitening_order": len(filt) - 1}
+            continue
+        sl = slice(start, start + K - 1)
+        d, Vd = beta[sl], V[sl, sl]
+        W = float(d @ np.linalg.lstsq(Vd, d, rcond=None)[0])
+        # each bin against the count-weighted mean of the bins, for the message (where the residual sits)
+        L = np.zeros((K, K - 1))
+        L[1:] = np.eye(K - 1)
+        L -= (counts / n) @ L
+        dev, se = L @ d, np.sqrt(np.maximum(np.diag(L @ Vd @ L.T), 1e-300))
+        out[name] = {"statistic": W, "dof": K - 1, "p_value": float(stats.f.sf(W / (K - 1), K - 1, dof)), "bins": K,
+                     "z_scores": (dev / se).tolist(), "whitening_order": len(filt) - 1}
+    return out
+
+
 def binned_test(r, z, bins: int = 10) -> dict:
     """Whether the residual ``r`` is a function of the argument ``z``: the means of ``r`` in
-    ``bins`` quantile bins of ``z`` and the Wald statistic of their equality,
-    ``(C m)' (C V C')^-1 (C m)`` over K - 1 ~ F(K - 1, N - K), by generalised least squares: the
-    residual around the bin means is modelled as autoregressive (:func:`ar_whitener`), the residual
-    and the bin indicators are filtered with its whitening filter and the means regressed on them
-    (twice, the AR model refitted around the new means).
+    ``bins`` quantile bins of ``z`` and the Wald statistic of their equality over K - 1,
+    ~ F(K - 1, N - K), by generalised least squares: the residual around the bin means is modelled
+    as autoregressive (:func:`ar_whitener`), the residual and the bin indicators are filtered with
+    its whitening filter and the means regressed on them (twice, the AR model refitted around the
+    new means).
 
-    Returns ``{"statistic", "dof", "p_value", "bins", "edges", "z_scores", "whitening_order"}``: ``z_scores`` are each bin's
-    mean minus the overall mean, over its standard error.
+    Returns ``{"statistic", "dof", "p_value", "bins", "z_scores", "whitening_order"}``: ``z_scores`` are
+    each bin's mean minus the overall mean, over its standard error.
 
     Examples
     --------
@@ -182,37 +263,4 @@ def binned_test(r, z, bins: int = 10) -> dict:
     >>> binned_test(rng.normal(size=2000) + z ** 3 - 0.6 * z, z)["p_value"] < 1e-6
     True
     """
-    from scipy import stats
-
-    r, z = np.asarray(r, dtype=float), np.asarray(z, dtype=float)
-    n = r.size
-    edges = np.unique(np.quantile(z, np.linspace(0.0, 1.0, int(bins) + 1)))
-    idx = np.clip(np.searchsorted(edges, z, side="right") - 1, 0, len(edges) - 2)
-    counts = np.bincount(idx, minlength=len(edges) - 1)
-    keep = counts > 0
-    idx = np.cumsum(keep)[idx] - 1
-    counts, K = counts[keep], int(keep.sum())
-    means = np.bincount(idx, weights=r, minlength=K) / counts
-    u = r - means[idx]
-    if K < 2 or not np.any(u):
-        return {"statistic": 0.0, "dof": max(K - 1, 0), "p_value": 1.0, "bins": K, "edges": edges.tolist(),
-                "z_scores": [0.0] * K}
-    B = np.zeros((n, K))
-    B[np.arange(n), idx] = 1.0
-    for _ in range(2):  # feasible GLS: the AR model of the residual around the bin means, then the means
-        filt = ar_whitener(u)
-        rf, Bf = _whiten(filt, r, B)
-        means = np.linalg.lstsq(Bf, rf, rcond=None)[0]
-        u = r - B @ means
-    e = rf - Bf @ means
-    dof = max(rf.size - K, 1)
-    V = float(e @ e) / dof * np.linalg.inv(Bf.T @ Bf)
-    C = np.hstack([np.eye(K - 1), -np.ones((K - 1, 1))])  # m_k - m_K, k < K
-    d = C @ means
-    W = float(d @ np.linalg.solve(C @ V @ C.T, d))
-    # each bin against the overall mean, for the message (where along the argument the residual sits)
-    D = np.eye(K) - np.outer(np.ones(K), counts) / n
-    dev = D @ means
-    se = np.sqrt(np.maximum(np.diag(D @ V @ D.T), 1e-300))
-    return {"statistic": W, "dof": K - 1, "p_value": float(stats.f.sf(W / (K - 1), K - 1, dof)), "bins": K,
-            "edges": edges.tolist(), "z_scores": (dev / se).tolist(), "whitening_order": len(filt) - 1}
+    return binned_tests(r, {"z": z}, bins)["z"]

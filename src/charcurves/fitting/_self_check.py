@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 
 from ..data import REL_FLOOR, equation_floors, noise_variance
-from ._residual_tests import binned_test, input_correlation, whiteness
+from ._residual_tests import binned_tests, input_correlation, whiteness
 
-__all__ = ["RESIDUAL_LEVEL", "residual_check", "self_check", "SELF_CHECK_FACTOR", "self_check_warning"]
+__all__ = ["RESIDUAL_LEVEL", "residual_check", "residual_test_rows", "self_check", "SELF_CHECK_FACTOR", "self_check_warning"]
 
 #: a loss more than this multiple of the noise floor gets a warning (the inner loop of model
 #: selection accepts 1.5; this bound flags fits that clearly failed, not marginal ones)
@@ -31,8 +31,11 @@ SELF_CHECK_FACTOR = 10.0
 #: variance (an SNR above 50 dB) is taken as clean by :func:`measured_state_noise`
 CLEAN_COLUMN = 1e-5
 #: the residual tests' level: the chance that a well-specified fit fails any of its tests
-#: (Bonferroni: each of the n tests of a fit runs at RESIDUAL_LEVEL / n)
-RESIDUAL_LEVEL = 0.01
+#: (Bonferroni: each of the n tests of a fit runs at RESIDUAL_LEVEL / n). 0.3 %: at 1 % 3 of 80
+#: well-specified fits were flagged (benchmarks/bench_self_check.py; a differentiator's smoothing
+#: bias is a function of the state that the tests can see), at 0.3 % none, with the detections
+#: of the misspecified fits kept
+RESIDUAL_LEVEL = 0.003
 #: quantile bins of a curve's argument in the binned test (fewer on short records: 50 samples a bin)
 RESIDUAL_BINS = 10
 
@@ -225,16 +228,15 @@ def self_check(model, record, mask=None, *, estimated: bool = False, snr_db: flo
         check["equation_error"] = ee
     check["residual_tests"] = residual_check(model, record, mask, white_expected=not estimated and oe is None)
     model.info["self_check"] = check
+    lines = check["residual_tests"].pop("warnings")
     if not model.info.get("interrupted"):
-        model.info["warnings"] = list(model.info.get("warnings", [])) + check["residual_tests"]["warnings"]
-        if not model.info["warnings"]:
-            del model.info["warnings"]
-    if not check["passed"] and not model.info.get("interrupted"):
-        k = int(np.argmax(ratios))
-        label = f"{k + 1} of {len(ratios)}" if len(ratios) > 1 else ""
-        model.info["warnings"] = list(model.info.get("warnings", [])) + [
-            self_check_warning(ratios[k], used["noise_floor"][k], used["floor_source"], label,
-                               output_error=oe is not None)]
+        if not check["passed"]:  # the loss far above the floor first, then the residual tests
+            k = int(np.argmax(ratios))
+            label = f"{k + 1} of {len(ratios)}" if len(ratios) > 1 else ""
+            lines.insert(0, self_check_warning(ratios[k], used["noise_floor"][k], used["floor_source"], label,
+                                               output_error=oe is not None))
+        if lines:
+            model.info["warnings"] = list(model.info.get("warnings", [])) + lines
     return check
 
 
@@ -300,8 +302,8 @@ def _residual_warning(model, test: dict, level: float) -> str:
         prior = _prior(model, curve)
         fix = (f"its prior ({prior}) is wrong for this record -- try --sym none or --sym auto; or " if prior else "")
         return (f"self-check: the residual{where} is a function of {arg}, the argument of {curve} (binned test: "
-                f"the residual's means in {test['bins']} quantile bins of {arg} differ, {p}); {curve} misses a "
-                f"shape of its law: {fix}the curve's shape is one its representation cannot take -- try a more "
+                f"the residual's means in {test['bins']} quantile bins of {arg} differ, {p}); {curve} (or a curve "
+                f"whose argument moves with {arg} along the record) misses a shape of its law: {fix}the curve's shape is one its representation cannot take -- try a more "
                 "flexible one (--method nn-cc, a larger --basis or poly-cc degree)")
     if test["test"] == "input":
         return (f"self-check: the residual{where} is correlated with the input F (cross-correlation at lag "
@@ -314,13 +316,16 @@ def _residual_warning(model, test: dict, level: float) -> str:
 
 def residual_check(model, record, mask=None, *, white_expected: bool, level: float = RESIDUAL_LEVEL) -> dict:
     """The residual tests of each equation of ``model`` on ``record`` (the prepared record of the fit,
-    sticking samples left out by ``mask``): the binned test against each curve's argument, the
-    cross-correlation with the input (when it varies) and, with ``white_expected`` (equation error
-    on the record's own derivative columns, where a correct model leaves the white noise of the
-    measured columns), whiteness. The residual is the equation residual of the final curves; for
-    a fit by output error (or on estimated derivatives) it is correlated over neighbouring samples by
-    the differentiator, which the binned and cross-correlation tests allow for (their AR models)
-    and whiteness cannot, so it is not applied there.
+    sticking samples left out by ``mask``): the binned test against each curve's argument and, with
+    ``white_expected`` (equation error on the record's own derivative columns, where a correct model
+    leaves the white noise of the measured columns), whiteness and the cross-correlation with the
+    input (when it varies). The residual is the equation residual of the final curves. On estimated
+    derivatives (a fit by output error, or equation error on a differentiator's estimates) it is
+    correlated over neighbouring samples, which the binned test allows for (its AR model), and it
+    holds the differentiator's bias, a filtered function of the trajectory: that is not white and
+    correlates with the input at the filter's lags (the correct Duffing model, 30 dB on x: p = 1e-4
+    to 1e-3), so whiteness and the cross-correlation are not applied there. ``level``: the chance that a well-specified fit
+    fails any of its tests.
 
     Returns ``{"level", "per_test_level", "tests", "whiteness", "passed", "warnings"}``: each test
     with its p-value and ``passed`` (p at least ``level`` over the number of tests).
@@ -335,17 +340,15 @@ def residual_check(model, record, mask=None, *, white_expected: bool, level: flo
             continue
         if white_expected:
             tests.append({**base, "test": "whiteness", **whiteness(r)})
-        if np.ptp(F) > 1e-12 * max(1.0, float(np.max(np.abs(F)))):
+        if white_expected and np.ptp(F) > 1e-12 * max(1.0, float(np.max(np.abs(F)))):
             s2 = noise_variance(F) if noisy_F is not None else 0.0
             s2 = s2 if s2 > CLEAN_COLUMN * float(np.var(F)) else 0.0
             tests.append({**base, "test": "input", **input_correlation(r, F, input_noise=s2, gain=float(model.gain))})
         bins = int(max(3, min(RESIDUAL_BINS, r.size // 50)))
-        for c, z in curves.items():
-            if np.ptp(z) > 0:
-                res = binned_test(r, z, bins=bins)
-                res.pop("edges")
-                res["z_scores"] = [round(v, 3) for v in res["z_scores"]]
-                tests.append({**base, "test": "binned", "curve": c, "argument": model.template.arguments[c], **res})
+        varying = {c: z for c, z in curves.items() if np.ptp(z) > 0}
+        for c, res in (binned_tests(r, varying, bins=bins) if varying else {}).items():
+            res["z_scores"] = [round(v, 3) for v in res["z_scores"]]
+            tests.append({**base, "test": "binned", "curve": c, "argument": model.template.arguments[c], **res})
     each = level / max(len(tests), 1)
     for t in tests:
         t["passed"] = bool(t["p_value"] >= each)
@@ -354,5 +357,29 @@ def residual_check(model, record, mask=None, *, white_expected: bool, level: flo
         t.pop("equations")
     return {"level": level, "per_test_level": each, "tests": tests,
             "whiteness": "applied" if white_expected else
-            "not applied: the residual of estimated derivatives or of an output-error fit is correlated by nature",
+            "not applied (nor the cross-correlation with the input): the residual of estimated derivatives is "
+            "correlated by nature and holds the differentiator's bias",
             "passed": bool(all(t["passed"] for t in tests)), "warnings": warnings}
+
+
+def residual_test_rows(model) -> list[tuple[str, str, str, str]]:
+    """The residual tests of a fitted model as rows ``(test, what, statistic, verdict)`` for the
+    summary and the report (empty when the model has none, e.g. fitted by an older charcurves)."""
+    rt = (model.info.get("self_check") or {}).get("residual_tests")
+    if not rt:
+        return []
+    rows = []
+    for t in rt["tests"]:
+        eq = f"equation {t['equation']}: " if any(u["equation"] > 1 for u in rt["tests"]) else ""
+        if t["test"] == "binned":
+            what = f"{eq}residual against {t['argument']} (argument of {t['curve']}), {t['bins']} bins"
+            stat = f"F = {t['statistic'] / max(t['dof'], 1):.3g} on ({t['dof']}, N - {t['bins']})"
+        elif t["test"] == "input":
+            what = f"{eq}cross-correlation with F, lags 1..{t['lags'] // 2} both ways"
+            stat = f"max |z| = {t['max_abs_z']:.3g} at lag {t['at_lag']}"
+        else:
+            what = f"{eq}whiteness over lags 1..{t['dof']}"
+            stat = f"Ljung-Box Q = {t['statistic']:.3g}"
+        verdict = f"p = {t['p_value']:.2g}, " + ("passed" if t["passed"] else f"FAILED (< {rt['per_test_level']:.2g})")
+        rows.append((t["test"], what, stat, verdict))
+    return rows
