@@ -303,6 +303,7 @@ def test_a_cubic_standing_in_for_drag_is_flagged_near_the_noise_floor():
     assert not rt["passed"] and rt["whiteness"] == "applied" and rt["per_test_level"] == pytest.approx(0.003 / 4)
     (f1,) = [t for t in rt["tests"] if t["test"] == "binned" and t["curve"] == "f1"]
     assert not f1["passed"] and f1["p_value"] < 1e-4 and f1["argument"] == "x'"
+    assert 0.01 < f1["effect_over_floor"] < 0.2  # the bin means' spread over the floor (loss over floor - 1: 0.06)
     lines = [w for w in wrong.info["warnings"] if "argument of f1" in w]
     assert len(lines) == 1 and "binned test" in lines[0] and "more flexible" in lines[0]
     right = _fit(rec, "parametric", basis="f1=z, z*Abs(z); f2=tanh(2*z)")
@@ -347,3 +348,37 @@ def test_the_residual_tests_are_in_result_json_the_summary_and_the_report(tmp_pa
     assert "residual against x' (argument of f1), 10 bins" in summary
     page = (tmp_path / "o" / "report.html").read_text()
     assert "Self-check" in page and "some FAILED" in page
+
+
+def test_the_documented_rates_are_the_committed_benchmark():
+    """docs/selection.md quotes benchmarks/results/self_check.json (benchmarks/bench_self_check.py)."""
+    from pathlib import Path
+
+    from charcurves.fitting import RESIDUAL_LEVEL
+
+    root = Path(__file__).resolve().parents[1]
+    doc = json.loads((root / "benchmarks" / "results" / "self_check.json").read_text())
+    rows = {r["case"]: r for r in doc["rows"]}
+    assert doc["level"] == RESIDUAL_LEVEL == 0.003 and doc["seeds"] == 20 and len(rows) == 11
+    assert [r["flagged"] for r in rows.values() if r["well_specified"]] == [0.0] * 5
+    assert sum(r["flagged_at_1pct"] * r["seeds"] for r in rows.values() if r["well_specified"]) == 2
+    assert rows["drag, cubic basis for f1, 20 dB on F"]["flagged"] == 0.95
+    assert rows["drag, cubic basis for f1, 20 dB on F"]["loss_check_flagged"] == 0.0
+    assert rows["drag, Duffing basis, 20 dB on F"]["flagged"] == 1.0
+    assert rows["asymmetric spring, odd prior on f2, 20 dB on F"]["flagged"] == 1.0
+    page = " ".join((root / "docs" / "selection.md").read_text(encoding="utf-8").split())
+    assert "| drag, a cubic for f1, 20 dB on F | **95 %** | 0 % | 1.05 |" in page
+    assert "overall level of **0.3 %**" in page
+
+
+def test_a_clean_record_shows_structure_far_below_the_floor_and_passes():
+    """A noise-free record with its exact derivatives: the residual is round-off, which is not white
+    (Ljung-Box p ~ 1e-37), but its structure is about 1e-28 of the floor (the floor's noise-free part,
+    1e-4 of var(F)), below RESIDUAL_MIN_EFFECT: no warning."""
+    from charcurves.fitting import RESIDUAL_MIN_EFFECT
+
+    model = _fit(get_system("duffing").simulate(), "parametric")
+    rt = model.info["self_check"]["residual_tests"]
+    (w,) = [t for t in rt["tests"] if t["test"] == "whiteness"]
+    assert w["p_value"] < 1e-10 and w["effect_over_floor"] < 1e-20 < RESIDUAL_MIN_EFFECT == 0.01
+    assert rt["passed"] and "warnings" not in model.info

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ar_whitener", "autocorrelation", "binned_test", "binned_tests", "input_correlation", "whiteness"]
+__all__ = ["ar_whitener", "autocorrelation", "bin_indices", "binned_test", "binned_tests", "input_correlation", "whiteness"]
 
 #: two-sided 1 % point of the normal distribution: a lag of a white series' normalised
 #: autocorrelation lies outside +-Z99/sqrt(N) with probability 1 %
@@ -166,8 +166,17 @@ def input_correlation(r, u, lags: int = 20, *, input_noise: float = 0.0, gain: f
             "whitening_order": len(filt) - 1}
 
 
-def _bin_indices(z: np.ndarray, bins: int) -> tuple[np.ndarray, np.ndarray]:
-    """Each sample's quantile bin of ``z`` (empty bins dropped) and the bins' sample counts."""
+def bin_indices(z: np.ndarray, bins: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each sample's quantile bin of ``z`` (empty bins dropped) and the bins' sample counts.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.fitting import bin_indices
+    >>> idx, counts = bin_indices(np.arange(10.0), 5)
+    >>> idx.tolist(), counts.tolist()
+    ([0, 0, 1, 1, 2, 2, 3, 3, 4, 4], [2, 2, 2, 2, 2])
+    """
     edges = np.unique(np.quantile(z, np.linspace(0.0, 1.0, int(bins) + 1)))
     idx = np.clip(np.searchsorted(edges, z, side="right") - 1, 0, max(len(edges) - 2, 0))
     counts = np.bincount(idx, minlength=max(len(edges) - 1, 1))
@@ -200,7 +209,7 @@ def binned_tests(r, arguments: dict, bins: int = 10) -> dict:
     names = list(arguments)
     blocks, cols, layout = [], [np.ones(n)], {}
     for name in names:
-        idx, counts = _bin_indices(np.asarray(arguments[name], dtype=float), bins)
+        idx, counts = bin_indices(np.asarray(arguments[name], dtype=float), bins)
         K = counts.size
         B = np.zeros((n, K))
         B[np.arange(n), idx] = 1.0

@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 
 from ..data import REL_FLOOR, equation_floors, noise_variance
-from ._residual_tests import binned_tests, input_correlation, whiteness
+from ._residual_tests import autocorrelation, bin_indices, binned_tests, input_correlation, whiteness
 
-__all__ = ["RESIDUAL_LEVEL", "residual_check", "residual_test_rows", "self_check", "SELF_CHECK_FACTOR", "self_check_warning"]
+__all__ = ["RESIDUAL_LEVEL", "RESIDUAL_MIN_EFFECT", "residual_check", "residual_test_rows", "self_check", "SELF_CHECK_FACTOR", "self_check_warning"]
 
 #: a loss more than this multiple of the noise floor gets a warning (the inner loop of model
 #: selection accepts 1.5; this bound flags fits that clearly failed, not marginal ones)
@@ -31,11 +31,14 @@ SELF_CHECK_FACTOR = 10.0
 #: variance (an SNR above 50 dB) is taken as clean by :func:`measured_state_noise`
 CLEAN_COLUMN = 1e-5
 #: the residual tests' level: the chance that a well-specified fit fails any of its tests
-#: (Bonferroni: each of the n tests of a fit runs at RESIDUAL_LEVEL / n). 0.3 %: at 1 % 3 of 80
-#: well-specified fits were flagged (benchmarks/bench_self_check.py; a differentiator's smoothing
-#: bias is a function of the state that the tests can see), at 0.3 % none, with the detections
-#: of the misspecified fits kept
+#: (Bonferroni: each of the n tests of a fit runs at RESIDUAL_LEVEL / n). 0.3 %: at 1 % 2 of 100
+#: well-specified fits were flagged (benchmarks/bench_self_check.py), at 0.3 % none, with the
+#: detections of the misspecified fits at 20 dB on F kept (docs/selection.md)
 RESIDUAL_LEVEL = 0.003
+#: a failed test must also have found structure of at least this share of the equation's noise
+#: floor: a clean record's residual (a differentiator's bias, round-off) has structure the tests
+#: see, far below the floor's noise-free part (1e-4 of var(g F)); a cubic for drag, 20 dB on F: 0.03-0.05
+RESIDUAL_MIN_EFFECT = 0.01
 #: quantile bins of a curve's argument in the binned test (fewer on short records: 50 samples a bin)
 RESIDUAL_BINS = 10
 
@@ -226,7 +229,8 @@ def self_check(model, record, mask=None, *, estimated: bool = False, snr_db: flo
              "state_noise_counted": bool(oe is not None or state_noise is not None)}
     if oe is not None:
         check["equation_error"] = ee
-    check["residual_tests"] = residual_check(model, record, mask, white_expected=not estimated and oe is None)
+    check["residual_tests"] = residual_check(model, record, mask, white_expected=not estimated and oe is None,
+                                             floors=values)
     model.info["self_check"] = check
     lines = check["residual_tests"].pop("warnings")
     if not model.info.get("interrupted"):
@@ -314,7 +318,8 @@ def _residual_warning(model, test: dict, level: float) -> str:
             "coloured noise on the measured columns -- run `charcurves select` or write the term into --equation")
 
 
-def residual_check(model, record, mask=None, *, white_expected: bool, level: float = RESIDUAL_LEVEL) -> dict:
+def residual_check(model, record, mask=None, *, white_expected: bool, level: float = RESIDUAL_LEVEL,
+                   floors: list[float] | None = None) -> dict:
     """The residual tests of each equation of ``model`` on ``record`` (the prepared record of the fit,
     sticking samples left out by ``mask``): the binned test against each curve's argument and, with
     ``white_expected`` (equation error on the record's own derivative columns, where a correct model
@@ -328,7 +333,10 @@ def residual_check(model, record, mask=None, *, white_expected: bool, level: flo
     fails any of its tests.
 
     Returns ``{"level", "per_test_level", "tests", "whiteness", "passed", "warnings"}``: each test
-    with its p-value and ``passed`` (p at least ``level`` over the number of tests).
+    with its p-value, ``effect_over_floor`` (the variance of the structure it found -- the bin means'
+    spread, the input's share, the predictable share -- over the equation's noise floor ``floors``)
+    and ``passed``: p at least ``level`` over the number of tests, or an effect below
+    :data:`RESIDUAL_MIN_EFFECT`.
     """
     parts = _equation_parts(model, record, mask)
     noisy_F = getattr(record, "F", None)
@@ -338,20 +346,33 @@ def residual_check(model, record, mask=None, *, white_expected: bool, level: flo
         base = {"equation": e + 1, "equations": E}
         if r.size < 4 * RESIDUAL_BINS:
             continue
+        var = float(np.var(r))
         if white_expected:
-            tests.append({**base, "test": "whiteness", **whiteness(r)})
+            w = whiteness(r)
+            rho = autocorrelation(r, w["dof"])[1:]
+            tests.append({**base, "test": "whiteness", **w, "effect": var * float(np.sum(rho ** 2))})
         if white_expected and np.ptp(F) > 1e-12 * max(1.0, float(np.max(np.abs(F)))):
             s2 = noise_variance(F) if noisy_F is not None else 0.0
             s2 = s2 if s2 > CLEAN_COLUMN * float(np.var(F)) else 0.0
-            tests.append({**base, "test": "input", **input_correlation(r, F, input_noise=s2, gain=float(model.gain))})
+            c = input_correlation(r, F, input_noise=s2, gain=float(model.gain))
+            tests.append({**base, "test": "input", **c, "effect": var * c["max_abs_z"] ** 2 / r.size})
         bins = int(max(3, min(RESIDUAL_BINS, r.size // 50)))
         varying = {c: z for c, z in curves.items() if np.ptp(z) > 0}
         for c, res in (binned_tests(r, varying, bins=bins) if varying else {}).items():
             res["z_scores"] = [round(v, 3) for v in res["z_scores"]]
-            tests.append({**base, "test": "binned", "curve": c, "argument": model.template.arguments[c], **res})
+            idx, counts = bin_indices(varying[c], bins)
+            means = np.bincount(idx, weights=r) / counts
+            between = float(np.sum(counts * (means - np.mean(r)) ** 2) / r.size)
+            tests.append({**base, "test": "binned", "curve": c, "argument": model.template.arguments[c], **res,
+                          "effect": between})
     each = level / max(len(tests), 1)
     for t in tests:
-        t["passed"] = bool(t["p_value"] >= each)
+        size = t.pop("effect")
+        floor = floors[min(t["equation"], len(floors)) - 1] if floors else 0.0
+        t["effect_over_floor"] = size / floor if floor > 0 else float("inf")
+        # significant, and large enough to matter: a clean record's residual (a differentiator's bias,
+        # round-off) has structure the tests see, but far below the floor's noise-free part
+        t["passed"] = bool(t["p_value"] >= each or t["effect_over_floor"] < RESIDUAL_MIN_EFFECT)
     warnings = [_residual_warning(model, t, each) for t in tests if not t["passed"]]
     for t in tests:
         t.pop("equations")
