@@ -337,6 +337,17 @@ def residual_check(model, record, mask=None, *, white_expected: bool, level: flo
     spread, the input's share, the predictable share -- over the equation's noise floor ``floors``)
     and ``passed``: p at least ``level`` over the number of tests, or an effect below
     :data:`RESIDUAL_MIN_EFFECT`.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import residual_check
+    >>> from charcurves.systems import get_system
+    >>> record = cc.corrupt(get_system("duffing").simulate(), 20, on="force", seed=1)
+    >>> model = cc.fit(record, method="parametric", basis="f1=z; f2=z")  # f2 without its cubic
+    >>> check = residual_check(model, record, white_expected=True, floors=model.info["self_check"]["noise_floor"])
+    >>> check["passed"], [t["test"] for t in check["tests"] if not t["passed"]]
+    (False, ['whiteness'])
     """
     parts = _equation_parts(model, record, mask)
     noisy_F = getattr(record, "F", None)
@@ -385,7 +396,17 @@ def residual_check(model, record, mask=None, *, white_expected: bool, level: flo
 
 def residual_test_rows(model) -> list[tuple[str, str, str, str]]:
     """The residual tests of a fitted model as rows ``(test, what, statistic, verdict)`` for the
-    summary and the report (empty when the model has none, e.g. fitted by an older charcurves)."""
+    summary and the report (empty when the model has none, e.g. fitted by an older charcurves).
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import residual_test_rows
+    >>> from charcurves.systems import get_system
+    >>> record = cc.corrupt(get_system("duffing").simulate(), 20, on="force", seed=1)
+    >>> residual_test_rows(cc.fit(record, method="parametric"))[2]
+    ('binned', "residual against x' (argument of f1), 10 bins", 'F = 1.54 with 9 degrees of freedom', 'p = 0.13, passed')
+    """
     rt = (model.info.get("self_check") or {}).get("residual_tests")
     if not rt:
         return []
@@ -394,7 +415,7 @@ def residual_test_rows(model) -> list[tuple[str, str, str, str]]:
         eq = f"equation {t['equation']}: " if any(u["equation"] > 1 for u in rt["tests"]) else ""
         if t["test"] == "binned":
             what = f"{eq}residual against {t['argument']} (argument of {t['curve']}), {t['bins']} bins"
-            stat = f"F = {t['statistic'] / max(t['dof'], 1):.3g} on ({t['dof']}, N - {t['bins']})"
+            stat = f"F = {t['statistic'] / max(t['dof'], 1):.3g} with {t['dof']} degrees of freedom"
         elif t["test"] == "input":
             what = f"{eq}cross-correlation with F, lags 1..{t['lags'] // 2} both ways"
             stat = f"max |z| = {t['max_abs_z']:.3g} at lag {t['at_lag']}"
