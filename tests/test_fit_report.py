@@ -19,7 +19,7 @@ import charcurves as cc
 from charcurves.cli import main
 
 SECTIONS = ["Identified equation", "Curves", "Fit statistics",
-            "Output error (free runs of the model against the measured x)", "Settings", "Warnings", "Versions"]
+            "Output error (free runs of the model against the measured x)", "Self-check", "Settings", "Warnings", "Versions"]
 
 
 class Page(HTMLParser):

@@ -141,6 +141,8 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
         result["loss_over_floor"] = list(check["loss_over_floor"])
         result["noise_floor"] = {"value": list(check["noise_floor"]), "source": check["floor_source"],
                                  "loss": check["loss"]}
+        if check.get("residual_tests"):  # the tests themselves: info.self_check.residual_tests
+            result["residual_tests_passed"] = bool(check["residual_tests"]["passed"])
     errors = None
     if truth is not None:
         errors = curve_errors(model, truth)
@@ -197,6 +199,7 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
 
         lines += summary_lines(model)
     lines += _settings_lines(model)
+    lines += _self_check_lines(model)
     lines += [f"warning: {w}" for w in result["warnings"]]
     skipped = _skipped_by_interrupt(model)
     if skipped:
@@ -208,6 +211,22 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
     text = "\n".join(lines)
     atomic_write_bytes(os.path.join(out_dir, "summary.txt"), (text + "\n").encode())
     say(text, quiet)
+
+
+def _self_check_lines(model) -> list[str]:
+    """The self-check: loss over the noise floor and the residual tests (result.json info.self_check)."""
+    from ..fitting import residual_test_rows
+
+    check = model.info.get("self_check")
+    if not check:
+        return []
+    ratios = ", ".join(f"{r:.3g}" for r in check["loss_over_floor"])
+    rt = check.get("residual_tests") or {}
+    lines = [f"self-check (result.json info.self_check): loss over noise floor {ratios}"
+             + (f"; residual tests at level {rt['level']:g} ({len(rt['tests'])} tests, each at "
+                f"{rt['per_test_level']:.2g}): {'passed' if rt['passed'] else 'FAILED'}" if rt else "")]
+    lines += [f"  {what}: {stat}, {verdict}" for _, what, stat, verdict in residual_test_rows(model)]
+    return lines
 
 
 def _settings_lines(model) -> list[str]:

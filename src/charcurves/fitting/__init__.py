@@ -59,6 +59,17 @@ from ._post_sr import distill_model as distill_model
 from ._presets import PRESETS as PRESETS
 from ._presets import TrainingPreset as TrainingPreset
 from ._presets import get_preset as get_preset
+from ._residual_tests import ar_whitener as ar_whitener
+from ._residual_tests import autocorrelation as autocorrelation
+from ._residual_tests import bin_indices as bin_indices
+from ._residual_tests import binned_test as binned_test
+from ._residual_tests import binned_tests as binned_tests
+from ._residual_tests import input_correlation as input_correlation
+from ._residual_tests import whiteness as whiteness
+from ._self_check import RESIDUAL_LEVEL as RESIDUAL_LEVEL
+from ._self_check import RESIDUAL_MIN_EFFECT as RESIDUAL_MIN_EFFECT
+from ._self_check import residual_check as residual_check
+from ._self_check import residual_test_rows as residual_test_rows
 from ._symbolic_fit import fit_sr as fit_sr
 from ._symbolic_fit import fit_sr_cc as fit_sr_cc
 from ._symbolic_fit import fit_symbolic as fit_symbolic

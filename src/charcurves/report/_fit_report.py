@@ -14,7 +14,7 @@ import platform
 
 from .._errors import ModelFileError
 from ..fitting import (curve_lines, equation_text, figure_png, fit_statistics, load_model, output_error_rows,
-                       resolve_truth, settings_rows)
+                       residual_test_rows, resolve_truth, settings_rows)
 from ._html import Report
 
 __all__ = ["fit_report", "load_fit", "versions", "write_fit_report"]
@@ -161,6 +161,23 @@ def fit_report(model, *, result: dict | None = None, truth=None, title: str | No
     else:
         rep.paragraph("No output-error refinement in this fit (the objective was equation error), so no free-run "
                       "RMSE is recorded; `charcurves validate MODEL_DIR RECORD.csv` runs one.")
+
+    rep.heading("Self-check")
+    check = model.info.get("self_check") or {}
+    if check:
+        rt = check.get("residual_tests") or {}
+        rep.paragraph(f"Loss over the noise floor: {', '.join(f'{r:.3g}' for r in check['loss_over_floor'])} "
+                      f"(warned above {check['threshold']:g}; {check['floor_source']})."
+                      + (f" Residual tests (a residual that is a function of a curve's argument or, with measured "
+                         f"derivatives, correlated with the input or not white means a misfit): {len(rt['tests'])} "
+                         f"tests at an overall level of {rt['level']:g} (each at {rt['per_test_level']:.2g}), "
+                         f"{'all passed' if rt['passed'] else 'some FAILED'}; whiteness {rt['whiteness']}."
+                         if rt else ""))
+        tests = residual_test_rows(model)
+        if tests:
+            rep.table(["test", "of", "statistic", "verdict"], [list(r) for r in tests])
+    else:
+        rep.paragraph("This model does not record a self-check (fitted by an older charcurves).")
 
     rep.heading("Settings")
     rows = settings_rows(model)
