@@ -129,9 +129,6 @@ SR_OPTION_KEYS = tuple(DEFAULT_SR_OPTIONS)
 _ENGINES = ("operon", "pysr")
 
 
-
-
-
 def check_operators(ops) -> tuple[str, ...]:
     if isinstance(ops, str):
         ops = [o.strip() for o in ops.replace(";", ",").split(",") if o.strip()]
