@@ -164,7 +164,7 @@ def test_validate_refuses_rows_past_the_end(small_csv, tmp_path, capsys):
     import charcurves as cc
     from charcurves.data import Trajectory
 
-    cc.fit(Trajectory.from_csv(small_csv), method="parametric").save(str(tmp_path / "model"))
+    cc.fit(Trajectory.from_csv(small_csv), method="parametric", basis="f1=z; f2=z, z**3").save(str(tmp_path / "model"))
     err = _one_line(capsys, ["validate", str(tmp_path / "model"), small_csv, "--rows", "100:5000"])
     assert "--rows 100:5000 goes beyond the file, which has 400 rows; choose START:STOP within 0:400" in err
 

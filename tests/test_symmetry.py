@@ -219,7 +219,7 @@ def test_asked_priors_are_kept_and_named_and_the_self_check_names_them():
     assert CharacteristicCurves(symmetry="f2=odd").method_name() == "nn-cc+sym"
     model = est.fit(record).model_
     assert model.info["priors"]["summary"] == "f1=odd, f2=odd (asked: symmetry f1=odd,f2=odd)"
-    [warning] = [w for w in model.info["warnings"] if w.startswith("self-check:")]
+    [warning] = [w for w in model.info["warnings"] if w.startswith("self-check:") and "Likely causes" in w]
     assert ("Likely causes, most likely first: (0) the parity prior imposed (f1=odd, f2=odd; asked: symmetry "
             "f1=odd,f2=odd) -- refit without it") in warning
     sym = CharacteristicCurves(method="sindy-cc+sym").fit(corrupt(get_system("duffing").simulate(), 25, seed=0))

@@ -221,7 +221,7 @@ def check_model_digest(doc: dict, jpath: str = _MODEL_JSON) -> None:
     >>> from charcurves.fitting import check_model_digest
     >>> from charcurves.systems import get_system
     >>> path = os.path.join(tempfile.mkdtemp(), "model")
-    >>> cc.fit(get_system("duffing").simulate(), method="parametric").save(path)
+    >>> cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3").save(path)
     >>> with open(os.path.join(path, "model.json")) as fh:
     ...     doc = json.load(fh)
     >>> check_model_digest(doc)

@@ -24,7 +24,7 @@ from ._fit_path import fit_records, fitter_kind, resolve_jumps, sticking_masks
 from ._methods import METHODS, check_method_options
 from ._objectives import resolve_objective
 from ._self_check import derivative_noise, measured_state_noise, self_check
-from ._priors import priors_record
+from ._priors import name_prior_in_warnings, priors_record
 
 __all__ = ["run_pipeline", "raw_fit", "fit_with_post_sr", "check_device", "differentiator_used"]
 
@@ -157,6 +157,7 @@ def fit_with_post_sr(plain, distilled, records, seeds=None) -> tuple[list, list]
     for est, fitted in zip((plain, distilled), out):
         for m in fitted:
             m.info["priors"] = priors_record(est, m)
+            name_prior_in_warnings(m)  # as fit_many does: the two fits done apart warn alike
     return out
 
 

@@ -66,8 +66,13 @@ def ar_whitener(r, max_order: int = 40) -> np.ndarray:
     p_max = int(min(max_order, n // 10))
     g = autocorrelation(r, p_max)
     best, taps = 0.0, np.zeros(0)  # BIC relative to order 0: n log(s2_p / s2_0) + p log n
+    if not g[0] > 0:  # a constant (e.g. zero) residual: nothing to whiten
+        return np.ones(1)
     for p in range(1, p_max + 1):
-        a = solve_toeplitz(g[:p], g[1:p + 1])
+        try:
+            a = solve_toeplitz(g[:p], g[1:p + 1])
+        except np.linalg.LinAlgError:  # a degenerate autocorrelation (a residual at round-off): stop here
+            break
         s2 = float(g[0] - a @ g[1:p + 1])
         aic = n * np.log(max(s2, 1e-300)) + np.log(n) * p
         if aic < best:

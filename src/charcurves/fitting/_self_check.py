@@ -404,7 +404,7 @@ def residual_test_rows(model) -> list[tuple[str, str, str, str]]:
     >>> from charcurves.fitting import residual_test_rows
     >>> from charcurves.systems import get_system
     >>> record = cc.corrupt(get_system("duffing").simulate(), 20, on="force", seed=1)
-    >>> residual_test_rows(cc.fit(record, method="parametric"))[2]
+    >>> residual_test_rows(cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3"))[2]
     ('binned', "residual against x' (argument of f1), 10 bins", 'F = 1.54 with 9 degrees of freedom', 'p = 0.13, passed')
     """
     rt = (model.info.get("self_check") or {}).get("residual_tests")
