@@ -336,11 +336,25 @@ def curve_lines(rows: list[dict], setting: str, *, markdown: bool = False) -> li
 BEGIN, END = "<!-- zoo-tables:begin (written by benchmarks/bench_zoo.py --markdown) -->", "<!-- zoo-tables:end -->"
 
 
+def zoo_lines() -> list[str]:
+    """The zoo's rows as a Markdown table: half, system, family, slot, closed form, parity, range."""
+    head = ["half", "system", "family", "slot", "curve", "closed form", "parity", "range excited"]
+    body = []
+    for system, slot in zoo.ROWS:
+        s = zoo.SYSTEMS[system]
+        c = s.curve(slot)
+        body.append([zoo.HALF[(system, slot)], system, s.family, slot, c.kind.replace("|", "\\|"), f"`{c.text()}`", c.parity,
+                     f"{c.span[0]:g} .. {c.span[1]:g}"])
+    return ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"] + \
+        ["| " + " | ".join(b) + " |" for b in body]
+
+
 def markdown_block(rows: list[dict]) -> str:
-    """The generated part of docs/zoo.md: the summary per half and the per-curve tables."""
+    """The generated part of docs/zoo.md: the zoo's curves, the summary per half and the per-curve tables."""
     seeds = sorted({(r["setting"], r["seed"]) for r in rows})
     passes = ", ".join(f"{s} seed {k}" for s, k in seeds)
-    out = [BEGIN, "", f"From `benchmarks/results/zoo/results.jsonl`: {len(rows)} jobs ({passes}).",
+    out = [BEGIN, "", "## The curves", "", *zoo_lines(), "", "## Results", "",
+           f"From `benchmarks/results/zoo/results.jsonl`: {len(rows)} jobs ({passes}).",
            *table_lines(rows, markdown=True)]
     for setting in SETTINGS:
         lines = curve_lines(rows, setting, markdown=True)

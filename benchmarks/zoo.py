@@ -37,7 +37,14 @@ class ZooCurve:
     polynomial: bool = False
 
     def text(self) -> str:
-        return " + ".join(f"{c:g}*{g}" if g != "1" else f"{c:g}" for c, g in self.terms).replace("+ -", "- ")
+        """The closed form, e.g. ``0.2*z + 0.15*z*Abs(z)``."""
+        def term(c: float, g: str) -> str:
+            if g == "1":
+                return f"{c:g}"
+            g = f"({g})" if (" + " in g or " - " in g) else g
+            return g if c == 1 else f"-{g}" if c == -1 else f"{c:g}*{g}"
+
+        return " + ".join(term(c, g) for c, g in self.terms).replace("+ -", "- ")
 
     def basis(self) -> str:
         return ", ".join(g for _, g in self.terms)

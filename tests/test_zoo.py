@@ -183,3 +183,10 @@ def test_the_runner_skips_stored_jobs_and_orders_whole_passes(tmp_path):
     done = {r["key"] for r in bench_zoo.read_results(str(store))}
     assert [j for j in jobs if bench_zoo.job_key(j) not in done] == jobs[1:]
     assert json.loads(store.read_text())["key"] == "sep-drag-tanh|nn-cc|F25|0"
+
+
+def test_docs_zoo_tables_are_the_committed_results():
+    """docs/zoo.md's tables are the generator's output on the committed store: its numbers cannot drift."""
+    text = (BENCH.parent / "docs" / "zoo.md").read_text(encoding="utf-8")
+    block = text[text.index(bench_zoo.BEGIN):text.index(bench_zoo.END) + len(bench_zoo.END)] + "\n"
+    assert block == bench_zoo.markdown_block(bench_zoo.read_results(bench_zoo.RESULTS))
