@@ -135,8 +135,8 @@ FIXTURE = [
     _row("sep-drag-tanh", "nn-cc", "F25", 0, {"f1": 0.004, "f2": 0.001}),
     _row("sep-drag-tanh", "limit", "F25", 1, {"f1": 0.004, "f2": 0.001}),
     _row("sep-drag-tanh", "nn-cc", "F25", 1, {"f1": 0.004, "f2": 0.005}),
-    _row("sep-atan-asym", "limit", "F25", 0, {"f1": 0.001, "f2": 0.05}),
-    _row("sep-atan-asym", "nn-cc", "F25", 0, {"f1": 0.012, "f2": 0.06}),
+    dict(_row("sep-atan-asym", "limit", "F25", 0, {"f1": 0.001, "f2": 0.051}), self_check=False),
+    dict(_row("sep-atan-asym", "nn-cc", "F25", 0, {"f1": 0.012, "f2": 0.06}), self_check=True),
     _row("sep-friction-duffing", "limit", "F25", 0, {"f1": 0.001, "f2": 0.001}),
     _row("sep-friction-duffing", "nn-cc", "F25", 0, None, error="FitError: diverged"),
 ]
@@ -153,14 +153,15 @@ def test_the_report_is_rebuilt_from_stored_rows(tmp_path):
     lines = bench_zoo.table_lines(rows, markdown=True)
     tuning = lines[lines.index("### tuning half (18 curves, 9 systems)"):]
     # per-row ratio = median over seeds of nRMSE / limit's: drag f1 (2, 1) -> 1.5, f2 (1, 5) -> 3,
-    # atan f1 12, f2 1.2; median of (1.5, 3, 12, 1.2) = 2.25, worst 12 (sep-atan-asym f1);
+    # atan f1 12, f2 1.18; median of (1.5, 3, 12, 1.18) = 2.25, worst 12 (sep-atan-asym f1);
     # nRMSE per row (median over seeds): 0.4 %, 0.3 %, 1.2 %, 6 % -> median 0.8 %; within 1 % where
     # the limit is below 1/3 %: drag f1 (limit 0.3 %), drag f2 (0.1 %), atan f1 (0.1 %) -> 2 of 3
-    assert "| F25 | nn-cc | 4 | 2 | 0.80 % | 2.25 | 12.00 (sep-atan-asym f1) | 3/4 | 2/3 <= 1 % | 0 | 1.0 | 2.00 |" \
+    # the atan job (f2 6 % off) is a misfit; its self-check passed, so 0 of 1 flagged
+    assert "| F25 | nn-cc | 4 | 2 | 0.80 % | 2.25 | 12.00 (sep-atan-asym f1) | 3/4 | 2/3 <= 1 % | 0/1 | 0 | 1.0 | 2.00 |" \
         in tuning
-    assert "| F25 | limit | 4 | 2 | 0.20 % | - | - | - | 3/3 <= 1 % | 0 | 1.0 | 2.00 |" in tuning
+    assert "| F25 | limit | 4 | 2 | 0.20 % | - | - | - | 3/3 <= 1 % | 1/1 | 0 | 1.0 | 2.00 |" in tuning
     report = lines[lines.index("### report half (16 curves, 8 systems)"):]
-    assert "| F25 | nn-cc | 0 | 0 | - | - | - | - | 0/0 <= 1 % | 1 | 1.0 | 2.00 |" in report
+    assert "| F25 | nn-cc | 0 | 0 | - | - | - | - | 0/0 <= 1 % | 0/0 | 1 | 1.0 | 2.00 |" in report
     assert "- F25 nn-cc sep-friction-duffing seed 0: FitError: diverged" in lines
     doc = tmp_path / "zoo.md"
     doc.write_text("# The zoo\n\ntext before\n")
@@ -190,3 +191,14 @@ def test_docs_zoo_tables_are_the_committed_results():
     text = (BENCH.parent / "docs" / "zoo.md").read_text(encoding="utf-8")
     block = text[text.index(bench_zoo.BEGIN):text.index(bench_zoo.END) + len(bench_zoo.END)] + "\n"
     assert block == bench_zoo.markdown_block(bench_zoo.read_results(bench_zoo.RESULTS))
+
+
+def test_a_job_of_the_limit_reproduces_its_stored_row():
+    """One real job (the parametric limit: a linear fit, well under a second) gives the row the
+    committed store holds for it."""
+    job = ("sep-atan-asym", "limit", "F25", 0)
+    row = bench_zoo.run_job(job)
+    assert "error" not in row and row["key"] == "sep-atan-asym|limit|F25|0" and row["self_check"] is True
+    stored = {r["key"]: r for r in bench_zoo.read_results(bench_zoo.RESULTS)}[row["key"]]
+    assert row["nrmse"] == pytest.approx(stored["nrmse"], rel=1e-6)
+    assert 0.001 < row["nrmse"]["f1"] < 0.01 and 0.001 < row["nrmse"]["f2"] < 0.005
