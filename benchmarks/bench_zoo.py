@@ -348,6 +348,33 @@ def curve_lines(rows: list[dict], setting: str, *, markdown: bool = False) -> li
         ["  ".join(x.ljust(w) for x, w in zip(b, widths)) for b in body]
 
 
+def jump_lines(rows: list[dict], *, markdown: bool = False) -> list[str]:
+    """Dry friction where there is none: per setting and method (zoo curves are smooth, none has a jump),
+    the jobs that learned a jump at 0 (``jump_height`` of a curve), how many of those jumps are negative
+    (friction that feeds energy in), and the jobs that left sticking samples out (``n_sticking_samples``).
+    Counted over the jobs that recorded these fields."""
+    groups: dict = {}
+    for r in rows:
+        if "error" in r or r["method"] == LIMIT or "n_sticking_samples" not in r:
+            continue
+        g = groups.setdefault((r["setting"], r["method"]), [0, 0, 0, 0])
+        jumps = list((r.get("jump_height") or {}).values())
+        g[0] += 1
+        g[1] += bool(jumps)
+        g[2] += any(j < 0 for j in jumps)
+        g[3] += r["n_sticking_samples"] > 0
+    head = ["setting", "method", "jobs", "jump learned", "negative jump", "sticking samples dropped"]
+    body = [[s, m, *map(str, groups[(s, m)])] for s in SETTINGS for m in METHODS if (s, m) in groups]
+    if not body:
+        return []
+    if markdown:
+        return ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"] + \
+            ["| " + " | ".join(b) + " |" for b in body]
+    widths = [max(len(x) for x in col) for col in zip(head, *body)]
+    return ["  ".join(h.ljust(w) for h, w in zip(head, widths))] + \
+        ["  ".join(x.ljust(w) for x, w in zip(b, widths)) for b in body]
+
+
 BEGIN, END = "<!-- zoo-tables:begin (written by benchmarks/bench_zoo.py --markdown) -->", "<!-- zoo-tables:end -->"
 
 
@@ -371,6 +398,9 @@ def markdown_block(rows: list[dict]) -> str:
     out = [BEGIN, "", "## The curves", "", *zoo_lines(), "", "## Results", "",
            f"From `benchmarks/results/zoo/results.jsonl`: {len(rows)} jobs ({passes}).",
            *table_lines(rows, markdown=True)]
+    jl = jump_lines(rows, markdown=True)
+    if jl:
+        out += ["", "### Jumps and sticking on smooth curves (both halves)", "", *jl]
     for setting in SETTINGS:
         lines = curve_lines(rows, setting, markdown=True)
         if lines:
@@ -426,6 +456,9 @@ def main(argv=None) -> int:
                 _progress(i, len(todo), row, t0)
     rows = read_results(a.out)
     print("\n".join(table_lines(rows)))
+    jl = jump_lines(rows)
+    if jl:
+        print("\njumps and sticking on smooth curves (both halves)\n" + "\n".join(jl))
     for setting in SETTINGS:
         lines = curve_lines(rows, setting)
         if lines:

@@ -163,6 +163,9 @@ def test_the_report_is_rebuilt_from_stored_rows(tmp_path):
     report = lines[lines.index("### report half (16 curves, 8 systems)"):]
     assert "| F25 | nn-cc | 0 | 0 | - | - | - | - | 0/0 <= 1 % | 0/0 | 1 | 1.0 | 2.00 |" in report
     assert "- F25 nn-cc sep-friction-duffing seed 0: FitError: diverged" in lines
+    jumps = [dict(r, n_sticking_samples=n, jump_height=j) for r, n, j in
+             zip(FIXTURE[1:4:2], (0, 12), ({"f1": 0.3}, {"f1": -0.1, "f2": 0.2}))]
+    assert bench_zoo.jump_lines(jumps + FIXTURE, markdown=True)[2] == "| F25 | nn-cc | 2 | 2 | 1 | 1 |"
     doc = tmp_path / "zoo.md"
     doc.write_text("# The zoo\n\ntext before\n")
     bench_zoo.write_markdown(str(doc), rows)
