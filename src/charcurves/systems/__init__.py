@@ -1,5 +1,6 @@
 """Benchmark systems ``x'' + f1(x') + f2(x) = A cos(Ω t)``: Duffing and stick-slip; and one system
-per other family: van-der-pol (position-damping), first-order, two-dof (see ``system.family``).
+per other family: van-der-pol (position-damping), first-order, two-dof (see ``system.family``);
+:class:`CurveSystem` simulates any family with curves you give (the curve zoo's systems).
 
 Examples
 --------
@@ -20,8 +21,9 @@ from ._stick_slip import StickSlip
 
 __all__ = ["BenchmarkSystem", "Duffing", "StickSlip", "VanDerPolDamping", "FirstOrderSystem", "TwoDOF",
            "corrupt_forces", "get_system", "SYSTEM_NAMES", "MAX_SIMULATE_POINTS", "MAX_SIMULATE_SPAN",
-           "sample_times"]
+           "sample_times", "CurveSystem", "CURVE_SYSTEM_FAMILIES"]
 
+from ._curve_system import CURVE_SYSTEM_FAMILIES, CurveSystem  # noqa: E402
 from ._families import FirstOrderSystem, TwoDOF, VanDerPolDamping, corrupt_forces  # noqa: E402
 
 _REGISTRY: dict[str, type[BenchmarkSystem] | type[TwoDOF]] = {
