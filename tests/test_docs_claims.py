@@ -451,11 +451,11 @@ def test_deviations_21_and_22_quote_the_committed_full_study():
 
 
 def test_the_post_sr_forms_figures_are_those_of_the_committed_run():
-    """docs/training-defaults.md quotes benchmarks/results/postsr_forms.json (bench_postsr_forms.py)."""
+    """docs/post-sr.md quotes benchmarks/results/postsr_forms.json (bench_postsr_forms.py)."""
     import json
 
     doc = json.loads((ROOT / "benchmarks" / "results" / "postsr_forms.json").read_text())
-    text = _section(_page("training-defaults.md"), "## Post-SR operators", "## Harmonic terms")
+    text = _page("post-sr.md")
     for half in ("tune", "report"):
         s = doc["summary"][half]
         row = (f"| {s['recovered_before']} of {s['n_in_set']} | {s['recovered_after']} of {s['n_in_set']} | "

@@ -24,7 +24,7 @@ operator for Duffing, tanh for stick-slip), and beyond polynomials where the cur
   :data:`CLOSED_FORM_GAIN` times smaller than the polynomial pick's, so a polynomial truth stays a
   polynomial (the wider set offers look-alikes such as ``147 z - 728 sin(0.2 z)`` for z^3 - z that
   fit no better). Both searches are in ``meta["searches"]``; ``meta["operators"]`` is the kept one's.
-  Measured in ``benchmarks/bench_postsr_forms.py`` (docs/training-defaults.md, "Post-SR operators").
+  Measured in ``benchmarks/bench_postsr_forms.py`` (docs/post-sr.md).
 
 An explicit ``sr_options["operators"]`` overrides all this (one whole-curve search with that set).
 """
