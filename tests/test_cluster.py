@@ -19,6 +19,10 @@ ray = pytest.importorskip("ray", reason="ray is not importable (pip install ray)
 from charcurves.experiments import ResultsStore, Sweep, run_sweep  # noqa: E402
 from charcurves.fitting import PRESETS  # noqa: E402
 
+# Ray finds a cluster running on this machine (/tmp/ray): every test that starts or joins one runs on one
+# xdist worker, one after the other (--dist loadgroup in pyproject.toml)
+pytestmark = pytest.mark.xdist_group("ray")
+
 TINY = PRESETS["default"].replace(n_starts=1, adam_steps=20, lm_max_iter=3)
 
 

@@ -120,6 +120,7 @@ def test_base_seed_is_bounded_to_32_bits():
             Sweep(methods=["parametric"], base_seed=bad)
 
 
+@pytest.mark.xdist_group("ray")
 def test_a_cluster_address_refuses_ray_init_sizes(tmp_path, monkeypatch):
     pytest.importorskip("ray")
     from charcurves.experiments._executors import ray_address
@@ -482,6 +483,7 @@ def _same_rows(path_a, path_b):
     pd.testing.assert_frame_equal(a, b, check_exact=True)
 
 
+@pytest.mark.xdist_group("ray")  # beside the cluster tests, never at the same time (tests/test_cluster.py)
 def test_ray_executor_gives_the_same_rows_as_the_local_one(tmp_path):
     try:
         import ray
