@@ -342,6 +342,11 @@ def curve_lines(rows: list[dict], setting: str, *, markdown: bool = False) -> li
         c = zoo.SYSTEMS[system].curve(slot)
         body.append([zoo.HALF[(system, slot)], system, slot, c.key, c.parity]
                     + [_fmt(table.get((system, slot, m))) for m in methods])
+    return _render(head, body, markdown)
+
+
+def _render(head: list[str], body: list[list[str]], markdown: bool) -> list[str]:
+    """A table's lines: Markdown, or columns padded to their widths; no lines for an empty body."""
     if not body:
         return []
     if markdown:
@@ -369,14 +374,7 @@ def jump_lines(rows: list[dict], *, markdown: bool = False) -> list[str]:
         g[3] += r["n_sticking_samples"] > 0
     head = ["setting", "method", "jobs", "jump learned", "negative jump", "sticking samples dropped"]
     body = [[s, m, *map(str, groups[(s, m)])] for s in SETTINGS for m in METHODS if (s, m) in groups]
-    if not body:
-        return []
-    if markdown:
-        return ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"] + \
-            ["| " + " | ".join(b) + " |" for b in body]
-    widths = [max(len(x) for x in col) for col in zip(head, *body)]
-    return ["  ".join(h.ljust(w) for h, w in zip(head, widths))] + \
-        ["  ".join(x.ljust(w) for x, w in zip(b, widths)) for b in body]
+    return _render(head, body, markdown)
 
 
 BEGIN, END = "<!-- zoo-tables:begin (written by benchmarks/bench_zoo.py --markdown) -->", "<!-- zoo-tables:end -->"

@@ -167,6 +167,27 @@ def test_atomic_write_and_temporary_folders_follow_the_umask(tmp_path):
     assert sorted(os.listdir(tmp_path)) == sorted(["f.txt", os.path.basename(folder)])  # no temporary file left
 
 
+def _fit_until_training(tmp_path, record, out):
+    """A `fit --preset paper` subprocess (it trains for minutes), returned once its trainer reports progress,
+    so that a signal sent now lands inside training; with the stderr lines read so far."""
+    csv = _write(tmp_path / "d.csv", record)
+    proc = subprocess.Popen([sys.executable, "-m", "charcurves", "fit", csv, "--out", str(out), "--preset", "paper",
+                             "--no-figure"], env=dict(os.environ, OMP_NUM_THREADS="1"), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    lines = []
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline:
+        line = proc.stderr.readline()
+        lines.append(line)
+        if not line or line.lstrip().startswith("["):
+            break
+    if not lines[-1].lstrip().startswith("["):
+        proc.kill()
+        proc.communicate()
+    assert lines[-1].lstrip().startswith("["), "".join(lines)  # training reports progress: it is running
+    return proc, lines
+
+
 # ---------------------------------------------------------------------- SIGTERM
 def test_sigterm_mid_training_keeps_the_best_model_so_far_and_exits_130(tmp_path, record):
     """What schedulers and ``timeout`` send: like Ctrl-C, the best model so far is written completely and
@@ -174,20 +195,9 @@ def test_sigterm_mid_training_keeps_the_best_model_so_far_and_exits_130(tmp_path
     minutes), so it always lands inside training."""
     from charcurves import load_model
 
-    csv = _write(tmp_path / "d.csv", record)
     out = tmp_path / "o"
-    proc = subprocess.Popen([sys.executable, "-m", "charcurves", "fit", csv, "--out", str(out), "--preset", "paper",
-                             "--no-figure"], env=dict(os.environ, OMP_NUM_THREADS="1"), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    proc, lines = _fit_until_training(tmp_path, record, out)
     try:
-        lines = []
-        deadline = time.monotonic() + 240
-        while time.monotonic() < deadline:
-            line = proc.stderr.readline()
-            lines.append(line)
-            if not line or line.lstrip().startswith("["):
-                break
-        assert lines[-1].lstrip().startswith("["), "".join(lines)  # training reports progress: it is running
         proc.send_signal(signal.SIGTERM)
         stdout, rest = proc.communicate(timeout=120)
     finally:
@@ -365,20 +375,9 @@ def test_a_second_interrupt_50_ms_after_the_first_keeps_the_best_model(tmp_path,
     nothing was written ("interrupted before a model was trained", 3 of 3 runs)."""
     from charcurves import load_model
 
-    csv = _write(tmp_path / "d.csv", record)
     out = tmp_path / "o"
-    proc = subprocess.Popen([sys.executable, "-m", "charcurves", "fit", csv, "--out", str(out), "--preset", "paper",
-                             "--no-figure"], env=dict(os.environ, OMP_NUM_THREADS="1"), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    proc, lines = _fit_until_training(tmp_path, record, out)
     try:
-        lines = []
-        deadline = time.monotonic() + 240
-        while time.monotonic() < deadline:
-            line = proc.stderr.readline()
-            lines.append(line)
-            if not line or line.lstrip().startswith("["):
-                break
-        assert lines[-1].lstrip().startswith("["), "".join(lines)  # training reports progress: it is running
         proc.send_signal(sig)
         time.sleep(0.05)
         proc.send_signal(sig)
