@@ -245,8 +245,8 @@ def test_the_packages_form_layers():
 KNOWN_CIRCLES = [
     ["charcurves.fitting._estimator", "charcurves.fitting._symmetry"],
     ["charcurves.fitting._fit_path", "charcurves.fitting._symbolic_fit"],
-    ["charcurves.fitting._gradient_fit", "charcurves.fitting._linear_fit"],
-    ["charcurves.fitting._plots", "charcurves.fitting._views"],
+    ["charcurves.train._gradient_fit", "charcurves.train._linear_fit"],
+    ["charcurves.model._plots", "charcurves.model._views"],
     ["charcurves.symbolic._engine", "charcurves.symbolic._pysr"],
 ]
 

@@ -328,7 +328,7 @@ def test_an_expression_is_refused_with_one_line_or_evaluates_on_a_grid(text):
     import torch
 
     from charcurves.curves import Basis
-    from charcurves.fitting._linear_fit import MAX_COLUMN, _check_columns
+    from charcurves.train._linear_fit import MAX_COLUMN, _check_columns
 
     class _Template:
         arguments = {"f1": "x"}

@@ -10,9 +10,9 @@ import pytest
 import torch
 
 from charcurves.curves import Basis, LinearParametrisation
-from charcurves.fitting._evidence import EVIDENCE_GUARD, EvidenceSweeps, evidence_update, initial_decay
-from charcurves.fitting._output_error import _Ridge
-from charcurves.fitting._problem import BatchedProblem, CurveTerm
+from charcurves.train._evidence import EVIDENCE_GUARD, EvidenceSweeps, evidence_update, initial_decay
+from charcurves.objectives._output_error import _Ridge
+from charcurves.train._problem import BatchedProblem, CurveTerm
 
 BASIS = "z, z**2, z**3, z**4, z**5, z**6, z**7"
 TRUE = np.array([1.0, 0.0, -0.5, 0.0, 0.0, 0.0, 0.0])  # f(z) = z - z^3 / 2: five spare terms
@@ -128,8 +128,8 @@ def test_output_error_training_ends_a_model_only_once_its_decays_stay_put():
     With one evidence update per step (``evidence_sweeps=1``) the spare decays of this record's second
     model still move by about 1.2 % when its steps have stopped gaining; training goes on until one
     more update moves none by more than 1 %."""
-    from charcurves.fitting._evidence import SWEEP_TOL, set_evidence, with_decay
-    from charcurves.fitting._train import train
+    from charcurves.train._evidence import SWEEP_TOL, set_evidence, with_decay
+    from charcurves.train._train import train
 
     prob = _problem(noise=0.05, seed=1)
     theta, log = train(prob, torch.zeros(prob.K, prob.n_params, dtype=torch.float64), adam_steps=0, adam_lr=0.0,

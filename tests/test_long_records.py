@@ -9,9 +9,9 @@ import charcurves as cc
 from charcurves.curves import Neural, Polynomial
 from charcurves.data import corrupt
 from charcurves.fitting import PRESETS
-from charcurves.fitting import _long_record, _problem
-from charcurves.fitting._problem import BatchedProblem, CurveTerm, LeastSquaresProblem
-from charcurves.fitting._train import train
+from charcurves.train import _long_record, _problem
+from charcurves.train._problem import BatchedProblem, CurveTerm, LeastSquaresProblem
+from charcurves.train._train import train
 from charcurves.metrics import curve_errors
 
 
@@ -128,7 +128,7 @@ def test_two_stage_fit_reaches_the_whole_record_optimum(monkeypatch, long_duffin
 
 
 def test_batched_adam_is_torch_adam_bit_for_bit():
-    from charcurves.fitting._train import BatchedAdam
+    from charcurves.train._train import BatchedAdam
 
     g = torch.Generator().manual_seed(0)
     A = torch.randn(4, 7, 7, generator=g, dtype=torch.float64)

@@ -416,13 +416,13 @@ def test_ctrl_c_during_post_sr_writes_the_finished_fit(tmp_path, record, monkeyp
 
 
 def test_ctrl_c_during_output_error_refinement_writes_the_finished_fit(tmp_path, record, monkeypatch, capsys):
-    import charcurves.fitting._output_error as output_error
+    import charcurves.fitting._pipeline as pipeline
     from charcurves.cli import main
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(output_error, "output_error_fit", interrupted)
+    monkeypatch.setattr(pipeline, "output_error_fit", interrupted)  # where the fit looks it up
     csv = tmp_path / "d.csv"
     record.to_csv(csv)
     out = tmp_path / "fit"
@@ -465,7 +465,7 @@ def test_ctrl_c_during_band_refits_writes_the_main_fit(tmp_path, record, monkeyp
 def test_band_refits_stopped_by_ctrl_c_make_no_ensemble(record, monkeypatch):
     """Neural refits answer Ctrl-C by returning their best weights so far: fit_ensembles must not
     turn those into bands; the interrupt goes on to the caller."""
-    import charcurves.fitting._train as gradient
+    import charcurves.train._train as gradient
     from charcurves.selection import fit_ensembles
 
     real_train = gradient.train

@@ -252,7 +252,7 @@ def test_cached_constrained_sr3_gives_pysindys_coefficients_bit_for_bit(duffing)
     targets and the constraint given in target order (which pysindy reorders inside _reduce)."""
     import pysindy as ps
 
-    from charcurves.fitting._sr3 import constrained_sr3
+    from charcurves.train._sr3 import constrained_sr3
 
     model = cc.fit(corrupt(duffing[1], 20.0, seed=0), method="sindy-cc")
     # below ~30 dB the fit runs to max_iter without converging: the case the cache is for

@@ -31,19 +31,18 @@ def _case(name):
 
 @pytest.mark.parametrize("family", ["separable", "position-damping", "first-order", "two-dof"])
 def test_shooting_jacobian_matches_finite_differences(family, monkeypatch):
-    import charcurves.fitting._output_error as oe
-    import charcurves.fitting._train as tr
+    import charcurves.objectives._output_error as oe
 
     torch.set_num_threads(1)
     captured = {}
-    real = tr.train
+    real = oe.train
 
     def capture(problem, theta0, **kw):  # the real training, one iteration; keeps the problem it was given
         captured["problem"], captured["theta"] = problem, theta0
         kw["lm_max_iter"] = 1
         return real(problem, theta0, **kw)
 
-    monkeypatch.setattr(tr, "train", capture)
+    monkeypatch.setattr(oe, "train", capture)  # where output error looks it up
     rec, est = _case(family)
     models, prepared = raw_fit(est, [rec], [0])
     oe.output_error_fit(models[0], prepared[0], rec, OutputError(segment_length=40, continuity=3.0),
@@ -106,7 +105,7 @@ def test_free_run_curve_values_carry_the_shift_in_the_constant_coefficient(basis
     """The free run's per-stage curve values (CurveBlock.evaluator) equal shift + out * param((u - c) / h);
     a polynomial with a constant monomial and no output scale carries the shift in that coefficient."""
     from charcurves.curves import Basis, LinearParametrisation
-    from charcurves.fitting._shooting import CurveBlock, _constant_column
+    from charcurves.objectives._shooting import CurveBlock, _constant_column
 
     param = LinearParametrisation(Basis(basis))
     col = lambda v: torch.full((2, 1), v, dtype=torch.float64)  # noqa: E731
@@ -127,7 +126,7 @@ class _Quantised:
     loss by rounding only, and the trial is refused (counts every trial the trainer makes)."""
 
     def __init__(self):
-        from charcurves.fitting._problem import LeastSquaresProblem
+        from charcurves.train._problem import LeastSquaresProblem
 
         g = torch.Generator().manual_seed(0)
         self.A = torch.randn(50, 4, generator=g, dtype=torch.float64)
@@ -149,7 +148,7 @@ class _Quantised:
 
 
 def _train_quantised(theta0, window):
-    from charcurves.fitting._train import train
+    from charcurves.train._train import train
 
     q = _Quantised()
     theta, log = train(q.problem, theta0, adam_steps=0, adam_lr=0.0, lm_max_iter=50, lm_tol=1e-6, stop_loss=0.0,
@@ -211,7 +210,7 @@ def test_output_error_settles_the_evidence_of_spare_terms_in_few_steps(monkeypat
     so output error spent some twenty steps (one free run each) after fitting the record; iterating
     the evidence on the linearised problem once the record is fitted (``EVIDENCE_SWEEPS``) ends in
     under half the steps with the same curves, the true Duffing terms kept and the others at zero."""
-    import charcurves.fitting._output_error as oe
+    import charcurves.objectives._output_error as oe
     from charcurves.metrics import curve_errors
 
     torch.set_num_threads(1)
@@ -245,19 +244,18 @@ def test_only_single_coefficients_are_relevance_groups(family, relevance, monkey
     """The evidence sweeps of output error touch the decays of single coefficients (a polynomial's
     terms: automatic relevance determination), never a network's weight groups: iterated on the
     linearised problem those settled at decays that held van der Pol fits far from the record."""
-    import charcurves.fitting._output_error as oe
-    import charcurves.fitting._train as tr
+    import charcurves.objectives._output_error as oe
 
     torch.set_num_threads(1)
     captured = {}
-    real = tr.train
+    real = oe.train
 
     def capture(problem, theta0, **kw):
         captured["problem"] = problem
         kw["lm_max_iter"] = 1
         return real(problem, theta0, **kw)
 
-    monkeypatch.setattr(tr, "train", capture)
+    monkeypatch.setattr(oe, "train", capture)  # where output error looks it up
     rec, est = _case(family)
     models, prepared = raw_fit(est, [rec], [0])
     oe.output_error_fit(models[0], prepared[0], rec, OutputError(segment_length=40), preset=get_preset("default"))

@@ -33,7 +33,7 @@ def _fit_family(estimator, trajectories, n_members: int) -> list[dict]:
 
 
 def _load(files: dict[str, bytes]):
-    from ..fitting import load_model
+    from ..model import load_model
 
     with tempfile.TemporaryDirectory(prefix="charcurves-remote-") as tmp:
         path = os.path.join(tmp, "model")

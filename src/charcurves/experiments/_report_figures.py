@@ -57,7 +57,7 @@ def figure_data(df, variants: dict, extras) -> None:
 
 
 def _forward_data(df, extras) -> None:
-    from ..fitting import load_model
+    from ..model import load_model
     from ..simulate import simulate_model
     from ..systems import BenchmarkSystem, get_system
 

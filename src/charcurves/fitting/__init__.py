@@ -1,5 +1,7 @@
-"""Fitting: objectives, the one fitting path every representation and template goes through, the
-fitted model and its files, and the paper's twelve methods as presets.
+"""Fitting: the estimator, the one fitting path every representation and template goes through, and
+the paper's twelve methods as presets. It also re-exports the names of the layers below it that a
+fit uses (the fitted model from ``charcurves.model``, the objectives from ``charcurves.objectives``,
+the training presets from ``charcurves.train``), so ``from charcurves.fitting import ...`` keeps working.
 
 Public API
 ----------
@@ -26,39 +28,39 @@ from ._fit_path import JUMP_F_THRESHOLD as JUMP_F_THRESHOLD
 from ._fit_path import dry_friction_test as dry_friction_test
 from ._harmonics import HARMONIC_F_THRESHOLD as HARMONIC_F_THRESHOLD
 from ._harmonics import harmonic_test as harmonic_test
-from ._linear_fit import l0_weight as l0_weight
+from ..train import l0_weight as l0_weight
 from ._methods import DEFAULT_BASIS as DEFAULT_BASIS
 from ._methods import DEFAULT_GENERAL_BASIS as DEFAULT_GENERAL_BASIS
 from ._methods import METHODS as METHODS
 from ._methods import parse_basis_option as parse_basis_option
 from ._methods import parse_symmetry as parse_symmetry
 from ._methods import shared_fit_base as shared_fit_base
-from ._model import FORMAT_VERSION as FORMAT_VERSION
-from ._model import MODEL_SCHEMA as MODEL_SCHEMA
-from ._model import FittedModel as FittedModel
-from ._model import load_model as load_model
-from ._model import validate_model_document as validate_model_document
-from ._model_schema import check_model_digest as check_model_digest
-from ._model_schema import model_digest as model_digest
-from ._objectives import OBJECTIVES as OBJECTIVES
-from ._objectives import EquationError as EquationError
-from ._objectives import OutputError as OutputError
-from ._oe_report import closed_form_text as closed_form_text
-from ._output_error import free_run_diagnostics as free_run_diagnostics
-from ._output_error import output_error_fit as output_error_fit
-from ._output_error import refine_output_error as refine_output_error
-from ._oe_report import summary_lines as summary_lines
+from ..model import FORMAT_VERSION as FORMAT_VERSION
+from ..model import MODEL_SCHEMA as MODEL_SCHEMA
+from ..model import FittedModel as FittedModel
+from ..model import load_model as load_model
+from ..model import validate_model_document as validate_model_document
+from ..model import check_model_digest as check_model_digest
+from ..model import model_digest as model_digest
+from ..objectives import OBJECTIVES as OBJECTIVES
+from ..objectives import EquationError as EquationError
+from ..objectives import OutputError as OutputError
+from ..model import closed_form_text as closed_form_text
+from ..objectives import free_run_diagnostics as free_run_diagnostics
+from ..objectives import output_error_fit as output_error_fit
+from ..objectives import refine_output_error as refine_output_error
+from ..model import summary_lines as summary_lines
 from ._pipeline import fit_with_post_sr as fit_with_post_sr
 from ._pipeline import raw_fit as raw_fit
-from ._plots import figure_png as figure_png
-from ._plots import plot_curves as plot_curves
-from ._plots import plot_model as plot_model
-from ._plots import resolve_truth as resolve_truth
+from ..model import figure_png as figure_png
+from ..model import plot_curves as plot_curves
+from ..model import plot_model as plot_model
+from ..model import resolve_truth as resolve_truth
 from ._post_sr import DATA_LOSS_TOLERANCE as DATA_LOSS_TOLERANCE
 from ._post_sr import distill_model as distill_model
-from ._presets import PRESETS as PRESETS
-from ._presets import TrainingPreset as TrainingPreset
-from ._presets import get_preset as get_preset
+from ..train import PRESETS as PRESETS
+from ..train import TrainingPreset as TrainingPreset
+from ..train import get_preset as get_preset
 from ._residual_tests import ar_whitener as ar_whitener
 from ._residual_tests import autocorrelation as autocorrelation
 from ._residual_tests import bin_indices as bin_indices
@@ -79,14 +81,14 @@ from ._symmetry import detect_symmetry as detect_symmetry
 from ._symmetry import fit_many_auto as fit_many_auto
 from ._symmetry import parity_tests as parity_tests
 from ._symmetry import resolved_estimator as resolved_estimator
-from ._views import DISPLAY_DIGITS as DISPLAY_DIGITS
-from ._views import curve_lines as curve_lines
-from ._views import curve_scale as curve_scale
-from ._views import display_expression as display_expression
-from ._views import display_number as display_number
-from ._views import equation_text as equation_text
-from ._views import fit_statistics as fit_statistics
-from ._views import format_closed_form as format_closed_form
-from ._views import model_html as model_html
-from ._views import output_error_rows as output_error_rows
-from ._views import settings_rows as settings_rows
+from ..model import DISPLAY_DIGITS as DISPLAY_DIGITS
+from ..model import curve_lines as curve_lines
+from ..model import curve_scale as curve_scale
+from ..model import display_expression as display_expression
+from ..model import display_number as display_number
+from ..model import equation_text as equation_text
+from ..model import fit_statistics as fit_statistics
+from ..model import format_closed_form as format_closed_form
+from ..model import model_html as model_html
+from ..model import output_error_rows as output_error_rows
+from ..model import settings_rows as settings_rows

@@ -17,7 +17,7 @@ import numpy as np
 from .._errors import ConfigError
 
 if TYPE_CHECKING:
-    from ._model import FittedModel
+    from ..model import FittedModel
 
 __all__ = ["Ensemble", "fit_ensemble", "fit_ensembles", "bootstrap_records", "ENSEMBLE_KINDS", "MIN_MEMBERS",
            "check_band_options"]
@@ -248,7 +248,7 @@ def _prepared(estimator, record):
 def _beyond_raw(estimator, records) -> bool:
     """Whether the estimator's models go beyond the raw fit (post-SR, output error)."""
     from ..templates import derivatives_given
-    from ._objectives import resolve_objective
+    from ..objectives import resolve_objective
 
     mode, _ = resolve_objective(estimator.objective, estimator.refine, estimator.refine_options)
     if estimator.wants_post_sr() or mode == "output-error":

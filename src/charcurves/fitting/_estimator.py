@@ -13,8 +13,8 @@ import numpy as np
 from .._bounds import check_number
 from .._errors import ConfigError, NotFittedError
 from ._methods import METHODS, check_method_options, method_curve, parse_basis_option, parse_symmetry
-from ._model import FittedModel
-from ._presets import get_preset
+from ..model import FittedModel
+from ..train import get_preset
 from ._priors import name_prior_in_warnings, priors_record
 
 __all__ = ["CharacteristicCurves", "fit", "MAX_SEED"]
@@ -169,7 +169,7 @@ class CharacteristicCurves:
         """Fit many records (noise realisations, SNR levels...); neural curves train in one batch.
         ``threads`` holds for the whole fit (warm start, training, output error), so the bytes of
         the result do not depend on the environment's OMP_NUM_THREADS."""
-        from ._train import torch_threads
+        from ..train import torch_threads
 
         self.check()  # the thread count among the rest, before it is used
         from ._symmetry import fit_many_auto

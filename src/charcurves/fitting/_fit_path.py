@@ -14,7 +14,7 @@ import numpy as np
 
 from .._errors import ConfigError
 from ..templates import ESTIMATED_STICK_TOL, EquationTemplate, sticking_mask
-from ._presets import TrainingPreset
+from ..train import TrainingPreset
 
 __all__ = ["fit_records", "dry_friction_test", "JUMP_F_THRESHOLD", "fitter_kind", "sticking_masks"]
 
@@ -238,12 +238,12 @@ def fit_records(records, template: EquationTemplate, reps: dict, preset: Trainin
                              random_state=int(s))
                 for rec, s, m in zip(records, seeds, masks)]
     if kind == "linear":
-        from ._linear_fit import fit_linear
+        from ..train import fit_linear
 
         constant = bool(options.get("constant", True))
         return [fit_linear(rec, template, reps, method=method, mask=m, constant=constant)
                 for rec, m in zip(records, masks)]
-    from ._gradient_fit import fit_gradient
+    from ..train import fit_gradient
 
     out: list = [None] * len(records)
     groups: dict[tuple, list[int]] = {}

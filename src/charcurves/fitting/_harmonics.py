@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 
-from ._long_record import subset_indices
+from ..train import subset_indices
 
 __all__ = ["harmonic_test", "HARMONIC_F_THRESHOLD", "HARMONIC_MIN_GAIN", "HARMONIC_MIN_MISFIT", "MAX_HARMONICS", "HARMONIC_PERIODS"]
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 from .._errors import ConfigError
 from ._fit_path import fit_records, fitter_kind, resolve_jumps, sticking_masks
 from ._methods import METHODS, check_method_options
-from ._objectives import resolve_objective
+from ..objectives import output_error_fit, resolve_objective
 from ._self_check import derivative_noise, measured_state_noise, self_check
 from ._priors import name_prior_in_warnings, priors_record
 
@@ -279,8 +279,6 @@ def _post_sr(est, models, prepared, seeds, stop):
 
 
 def _output_error(models, prepared, raw, use_oe, settings, preset, progress, stop, strict=False):
-    from ._output_error import output_error_fit
-
     out = []
     for m, p, r, wanted in zip(models, prepared, raw, use_oe):
         if wanted and not stop:

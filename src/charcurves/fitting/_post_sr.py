@@ -15,7 +15,7 @@ import numpy as np
 from ..curves import SymbolicFittedCurve
 from ..symbolic import distill_curve_front, expression_complexity, operators_option, post_sr_engine
 from ..templates import sticking_mask
-from ._model import FittedModel
+from ..model import FittedModel
 
 __all__ = ["distill_model", "DATA_LOSS_TOLERANCE"]
 

@@ -39,7 +39,7 @@ from .._errors import ConfigError
 from ..curves import SymbolicFittedCurve
 from ..symbolic import POLY_OPERATORS, TANH_OPERATORS, decompose, eval_expression, make_engine, split_terms
 from ..templates import EquationTemplate
-from ._gradient_fit import finish_model
+from ..model import finish_model
 
 __all__ = ["fit_symbolic", "fit_sr", "fit_sr_cc", "OUTER_ITERATIONS", "SR_CC_OPTIONS"]
 

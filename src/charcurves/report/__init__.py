@@ -1,7 +1,7 @@
 """Figures and reports: the benchmark study's figures, the Markdown/HTML :class:`Report`, and the
 one-page report of a single fit (``charcurves report``)."""
 
-from ..fitting import plot_curves as plot_curves
+from ..model import plot_curves as plot_curves
 from ._figures import plot_free_run as plot_free_run
 from ._fit_report import fit_report as fit_report
 from ._fit_report import load_fit as load_fit

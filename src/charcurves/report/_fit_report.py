@@ -13,8 +13,9 @@ import os
 import platform
 
 from .._errors import ModelFileError
-from ..fitting import (curve_lines, equation_text, figure_png, fit_statistics, load_model, output_error_rows,
-                       residual_test_rows, resolve_truth, settings_rows)
+from ..fitting import residual_test_rows
+from ..model import (curve_lines, equation_text, figure_png, fit_statistics, load_model, output_error_rows, resolve_truth,
+                     settings_rows)
 from ._html import Report
 
 __all__ = ["fit_report", "load_fit", "versions", "write_fit_report"]

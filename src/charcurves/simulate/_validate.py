@@ -123,7 +123,7 @@ def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_co
     import os
 
     from ..data import Trajectory
-    from ..fitting import load_model
+    from ..model import load_model
 
     model = load_model(model_dir)
     if getattr(model.template, "is_general", False):

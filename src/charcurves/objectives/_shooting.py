@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 import torch
 
-from ._problem import LeastSquaresProblem
+from ..train import LeastSquaresProblem
 from ._shooting_ode import ShootingODE, curve_evaluator
 
 __all__ = ["ShootingProblem", "CurveBlock"]

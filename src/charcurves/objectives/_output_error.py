@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 
 from .._errors import ConfigError, DataError
+from ..model import finish_model
+from ..train import RELEVANCE_LABEL, get_preset, train
 from ._objectives import OutputError
-from ._problem import RELEVANCE_LABEL
 
 __all__ = ["free_run_diagnostics", "output_error_fit", "refine_output_error", "choose_substeps",
            "choose_segment_length", "slow_template"]
@@ -121,9 +122,7 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
 
     from ..curves import trainable
     from ..templates import ForwardModel, record_columns
-    from ._gradient_fit import finish_model
     from ._shooting import CurveBlock, ShootingProblem
-    from ._train import train
 
     started = time.perf_counter()
     template = model.template
@@ -462,8 +461,6 @@ def refine_output_error(model, traj, *, hold: str = "linear", substeps: int = 4,
     >>> model.info["output_error"]["status"], model.curves["f2"].coefficients.round(2).tolist()
     ('ok', [-1.0, 1.0])
     """
-    from ._presets import get_preset
-
     settings = OutputError(segment_length=segment_length, substeps=substeps, hold=hold, max_iter=max_nfev,
                            time_budget=time_budget)
     settings.check()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ._display import display_expression
+
 __all__ = ["closed_form_text", "summary_lines"]
 
 
@@ -24,8 +26,6 @@ def closed_form_text(model, digits: int = 6) -> str:
     "x'' + 41.7*x' + (x**3 - x) + 0 = 1*F"
     """
     import sympy as sp
-
-    from ._views import display_expression
 
     parts = []
     for name, arg in (("f1", "x'"), ("f2", "x")):

@@ -13,12 +13,18 @@ from .._errors import ConfigError, ModelFileError
 from ..curves import FittedCurve, curve_from_spec
 from ..io import atomic_write_bytes
 from ..templates import EquationTemplate, display, get_template
+from ._display import curve_scale, display_expression, display_number
 from ._model_schema import (FORMAT_VERSION, MODEL_SCHEMA, check_array_values, check_model_digest, model_digest,
                             validate_model_document)
+from ._plots import plot_model
+from ._views import model_html
 
 __all__ = ["FittedModel", "FORMAT_VERSION", "MODEL_SCHEMA", "load_model", "validate_model_document"]
 
 _MODEL_JSON = "model.json"
+#: The methods that have a ``+post-sr`` variant in charcurves.fitting's method table (a test checks
+#: that the two agree): an error about a curve without a closed form names that variant as the fix.
+DISTILLABLE_METHODS = ("nn-cc", "nn-cc+sym", "sindy-cc+sym")
 _ARRAYS = "arrays.safetensors"
 
 
@@ -117,18 +123,14 @@ class FittedModel:
         error naming the fix when a curve has none."""
         missing = [n for n, c in self.curves.items() if c.expression() is None]
         if missing:
-            from ._methods import METHODS
-
             kinds = ", ".join(f"{n} ({self.curves[n].kind})" for n in missing)
             distilled = f"{self.method}+post-sr"
-            how = f"--method {distilled}" if distilled in METHODS else "a +post-sr method"
+            how = f"--method {distilled}" if self.method in DISTILLABLE_METHODS else "a +post-sr method"
             raise ConfigError(
                 f"curves {kinds} have no closed form; distil them first: fit with post_sr=True or {how}, or "
                 "run charcurves.fitting.distill_model(model), or fit a basis method (parametric, poly-cc, sindy-cc)")
         if digits is None:
             return {n: c.expression() for n, c in self.curves.items()}
-        from ._views import display_expression
-
         return {n: display_expression(c.expression(), c.domain, digits=digits) for n, c in self.curves.items()}
 
     def to_sympy(self, *, curves: bool = False, digits: int | None = None):
@@ -158,8 +160,6 @@ class FittedModel:
             def num(value: float, constant: bool = False):
                 return sp.Float(value)
         else:  # rounded; a constant below the precision of the curves' values is dropped
-            from ._views import curve_scale, display_number
-
             scale = curve_scale(self)
 
             def num(value: float, constant: bool = False):  # scalars multiply signals: never dropped
@@ -219,14 +219,10 @@ class FittedModel:
         all of them; ``truth``: name -> callable or a benchmark system's name (``"duffing"``). Other
         keywords (``bands``, ``label``, ``margin``) as :func:`charcurves.fitting.plot_model`.
         """
-        from ._plots import plot_model
-
         return plot_model(self, ax, truth, **kwargs)
 
     def _repr_html_(self) -> str:
         """A notebook's view: the curves (closed forms to 4 digits), fit statistics, a small figure."""
-        from ._views import model_html
-
         return model_html(self)
 
     # ------------------------------------------------------------------ the CLI's result.json

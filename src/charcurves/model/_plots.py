@@ -10,6 +10,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from .._errors import ConfigError
+from ._display import format_closed_form
 
 __all__ = ["plot_curves", "plot_model", "figure_png", "resolve_truth"]
 
@@ -36,8 +37,6 @@ def plot_curves(model, truth: dict[str, Callable] | None = None, *, axes=None, n
     >>> [ax.get_xlabel() for ax in fig.axes]
     ["x'", 'x']
     """
-    from ._views import format_closed_form
-
     if bands is None:
         bands = getattr(model, "bands", None) or {}
     if axes is None:

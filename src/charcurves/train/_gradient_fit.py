@@ -16,10 +16,11 @@ import numpy as np
 
 from .._errors import ConfigError, DataError, FitError
 from ..templates import EquationTemplate
-from ._model import FittedModel
+from ..model import FittedModel, finish_model
+from ._linear_fit import constant_carriers, constant_slots
 from ._presets import TrainingPreset
 
-__all__ = ["fit_gradient", "finish_model", "ConstantParametrisation"]
+__all__ = ["fit_gradient", "ConstantParametrisation"]
 
 
 class ConstantParametrisation:
@@ -57,32 +58,6 @@ class ConstantParametrisation:
         return [(0, torch.ones(theta.shape[0], u.shape[-1], dtype=theta.dtype, device=theta.device), False)]
 
 
-def finish_model(template: EquationTemplate, method: str, curves: dict, gain: float, offsets: dict, scalars: dict,
-                 record, info: dict, mask: np.ndarray | None = None) -> FittedModel:
-    """A FittedModel with the template's gauge applied and its data loss (mean squared residual over
-    the fitted samples of every equation) computed."""
-    pinned = {n: c.pinned_at_zero for n, c in curves.items()}
-    raw0 = {n: float(c.raw(np.array([0.0]))[0]) for n, c in curves.items()}
-    shifts, new_off = template.normalise(raw0, pinned, offsets)
-    for n, c in curves.items():
-        c.shift = shifts[n]
-    scal = dict(scalars)
-    for e, v in new_off.items():
-        if e > 0:
-            scal[f"b{e + 1}"] = float(v)
-    info = dict(info)
-    if template.is_general:
-        info["scalars"] = scal
-    info["gauge_conditions"] = template.gauge_conditions(pinned)
-    info["gauge_freedoms"] = template.gauge_freedoms(pinned)
-    model = FittedModel(template, method, curves, gain, float(new_off.get(0, 0.0)), 0.0, info)
-    r = np.asarray(model.force_residual(record))
-    if mask is not None:
-        r = r[mask]
-    model.loss = float(np.mean(r**2))
-    return model
-
-
 def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, preset: TrainingPreset,
                  seeds: Sequence[int], *, method: str, masks: Sequence[np.ndarray], jumps: Sequence[str] = (),
                  powers: dict | None = None, harmonics: dict | None = None, device: str = "cpu", threads: int | None = None, progress: Callable | None = None,
@@ -108,7 +83,6 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
     """
     import torch
 
-    from ._linear_fit import constant_carriers, constant_slots
     from ._train import chunk_log, start_weights
     from ._warm import gain_estimate, sharpen_unresolved_jumps, train_batched
 

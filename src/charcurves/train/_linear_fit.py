@@ -19,7 +19,7 @@ import numpy as np
 
 from .._errors import ConfigError, DataError, FitError
 from ..templates import EquationTemplate
-from ._gradient_fit import finish_model
+from ..model import finish_model
 from ._sr3 import constrained_sr3
 
 __all__ = ["fit_linear", "l0_weight", "column_name"]

@@ -1,0 +1,37 @@
+"""The fitted model a fitter hands back: the template's gauge applied (each curve's value at zero and
+the constants moved where the template says) and the data loss computed on the fitted samples."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..templates import EquationTemplate
+from ._model import FittedModel
+
+__all__ = ["finish_model"]
+
+
+def finish_model(template: EquationTemplate, method: str, curves: dict, gain: float, offsets: dict, scalars: dict,
+                 record, info: dict, mask: np.ndarray | None = None) -> FittedModel:
+    """A FittedModel with the template's gauge applied and its data loss (mean squared residual over
+    the fitted samples of every equation) computed."""
+    pinned = {n: c.pinned_at_zero for n, c in curves.items()}
+    raw0 = {n: float(c.raw(np.array([0.0]))[0]) for n, c in curves.items()}
+    shifts, new_off = template.normalise(raw0, pinned, offsets)
+    for n, c in curves.items():
+        c.shift = shifts[n]
+    scal = dict(scalars)
+    for e, v in new_off.items():
+        if e > 0:
+            scal[f"b{e + 1}"] = float(v)
+    info = dict(info)
+    if template.is_general:
+        info["scalars"] = scal
+    info["gauge_conditions"] = template.gauge_conditions(pinned)
+    info["gauge_freedoms"] = template.gauge_freedoms(pinned)
+    model = FittedModel(template, method, curves, gain, float(new_off.get(0, 0.0)), 0.0, info)
+    r = np.asarray(model.force_residual(record))
+    if mask is not None:
+        r = r[mask]
+    model.loss = float(np.mean(r**2))
+    return model
