@@ -7,7 +7,7 @@ Two rules hold (docs/architecture.md):
   path with a component that starts with ``_``: ``from ..q._x import name``,
   ``from charcurves.q import _x``, ``import charcurves.q._x``);
 * **layers**: the graph "P imports Q" of the subpackages has no cycle;
-* no new **file circle** (modules of one package importing each other): only the known ones remain.
+* no **file circle** (modules of one package importing each other, also inside functions).
 
 The top-level modules ``charcurves._errors``, ``charcurves._lambdify`` and ``charcurves._version``
 are the package's base, below every subpackage (they import none), so every layer may use them.
@@ -240,22 +240,11 @@ def test_the_packages_form_layers():
     assert found is None, "package import cycle: " + " -> ".join(found or [])
 
 
-#: The file circles left (issue 49): fitting's four go with the split of that package; symbolic's
-#: make_engine (in _engine) builds the PySR engine, whose module subclasses _engine's base class.
-KNOWN_CIRCLES = [
-    ["charcurves.fitting._estimator", "charcurves.fitting._symmetry"],
-    ["charcurves.fitting._fit_path", "charcurves.fitting._symbolic_fit"],
-    ["charcurves.train._gradient_fit", "charcurves.train._linear_fit"],
-    ["charcurves.model._plots", "charcurves.model._views"],
-    ["charcurves.symbolic._engine", "charcurves.symbolic._pysr"],
-]
-
-
-def test_no_new_file_circle():
-    """Modules of a package that import each other (also through imports inside functions): only the
-    known ones are left, so their number can only go down."""
-    new = [c for c in file_circles(FOUND, SRC) if c not in KNOWN_CIRCLES]
-    assert not new, "new file circles (break them: move the shared helper to a lower module): " + "; ".join(
+def test_no_file_circle():
+    """Modules of a package that import each other (also through imports inside functions): none
+    since the split of fitting (issue 49)."""
+    new = file_circles(FOUND, SRC)
+    assert not new, "file circles (break them: move the shared helper to a lower module): " + "; ".join(
         " <-> ".join(c) for c in new)
 
 

@@ -114,7 +114,7 @@ def test_two_processes_give_byte_identical_result_json_for_nn_cc_sym(csv, tmp_pa
     it, none of 100 after the fix) came from torch.linalg.lstsq's default CPU driver, gelsy: PyTorch
     allocates its column-pivot array (jpvt) uninitialised, and LAPACK's ?gelsy reads it on entry (a
     nonzero entry fixes that column in front), so the pivoting of the warm start's QR followed
-    leftover heap contents. The warm start now names the gelsd driver (fitting/_warm.py); see the
+    leftover heap contents. The warm start now names the gelsd driver (train/_warm.py); see the
     test below.
 
     The second process has OMP_NUM_THREADS=2: the fit runs with its own thread count (``--threads``,

@@ -1,4 +1,4 @@
-"""The evidence sweeps of output error (`fitting/_evidence.py`) on a linear problem, where the
+"""The evidence sweeps of output error (`train/_evidence.py`) on a linear problem, where the
 linearised problem is the problem: the sweeps must reach MacKay's fixed point in one call, prune the
 coefficients the data do not support, leave network groups alone, and the guard must restore what
 it saved."""

@@ -1,4 +1,4 @@
-"""Sampled-input free runs (simulate/_sampled.py) and output-error refinement (fitting/_output_error.py)."""
+"""Sampled-input free runs (simulate/_sampled.py) and output-error refinement (objectives/_output_error.py)."""
 
 from __future__ import annotations
 

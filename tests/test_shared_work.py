@@ -229,7 +229,7 @@ def test_models_with_a_jump_or_long_closed_forms_run_one_at_a_time():
 
 
 def test_forward_validation_stacked_gives_the_statuses_and_separation_times_of_one_at_a_time(monkeypatch):
-    import charcurves.experiments._validation as validation
+    import charcurves.metrics._validation as validation
 
     system = get_system("duffing")
     cases = make_validation_cases(system, 4, seed=5)
@@ -270,7 +270,7 @@ def test_draws_that_leave_the_box_stop_early_with_the_answers_of_whole_runs(monk
     run, the cases inside are that run to the last bit, and the runs that leave take fewer solver steps."""
     import scipy.integrate
 
-    from charcurves.experiments._validation import VALIDATION_RANGES, _inside
+    from charcurves.metrics._validation import VALIDATION_RANGES, _inside
 
     scripts = get_system("duffing", "scripts")
     box = training_box(corrupt(scripts.simulate(), 35.0, on="force", seed=0))

@@ -290,7 +290,7 @@ def test_fitted_stick_slip_nn_cc_sym_model_simulates_with_events(stick_slip, sti
 
 
 def test_fitted_stick_slip_model_passes_the_validation_cases(stick_slip, stick_slip_nn_model):
-    from charcurves.experiments._validation import evaluate_forward, make_validation_cases
+    from charcurves.metrics._validation import evaluate_forward, make_validation_cases
 
     system, _ = stick_slip
     cases = make_validation_cases(system, 4, seed=0)

@@ -50,16 +50,16 @@ from ._sweep import paper_grid as paper_grid
 from ._sweep import plan_units as plan_units
 from ._sweep import quick_grid as quick_grid
 from ._sweep import run_sweep as run_sweep
-from ._validation import HORIZONS as HORIZONS
-from ._validation import VALIDATION_RANGES as VALIDATION_RANGES
-from ._validation import CaseResult as CaseResult
-from ._validation import ForwardEvaluation as ForwardEvaluation
-from ._validation import ValidationCase as ValidationCase
-from ._validation import ValidationSet as ValidationSet
-from ._validation import cached_validation_cases as cached_validation_cases
-from ._validation import evaluate_forward as evaluate_forward
-from ._validation import make_validation_cases as make_validation_cases
-from ._validation import training_box as training_box
+from ..metrics import HORIZONS as HORIZONS
+from ..metrics import VALIDATION_RANGES as VALIDATION_RANGES
+from ..metrics import CaseResult as CaseResult
+from ..metrics import ForwardEvaluation as ForwardEvaluation
+from ..metrics import ValidationCase as ValidationCase
+from ..metrics import ValidationSet as ValidationSet
+from ..metrics import cached_validation_cases as cached_validation_cases
+from ..metrics import evaluate_forward as evaluate_forward
+from ..metrics import make_validation_cases as make_validation_cases
+from ..metrics import training_box as training_box
 
 __all__ = [
     "BENCHMARK_SECTIONS",

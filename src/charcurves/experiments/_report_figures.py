@@ -101,7 +101,7 @@ def _forward_data(df, extras) -> None:
 
 def _phase_data(name: str, variant: str, extras) -> None:
     from ..systems import get_system
-    from ._validation import make_validation_cases, training_box
+    from ..metrics import make_validation_cases, training_box
 
     sig = {"system": name, "variant": variant, "cases": 10}
     if extras.get(f"phase:{name}:{variant}", sig) is not None:
@@ -163,7 +163,7 @@ def forward_panels(rep, df, extras) -> None:
 def phase_space(rep, df, run, extras) -> None:
     from ..report import plot_phase_space
     from ..systems import get_system
-    from ._validation import training_box
+    from ..metrics import training_box
 
     rep.heading("Dynamics interpolation: training data and validation trajectories (Fig. 7)")
     variants = dict(run.get("variants", {}))

@@ -386,7 +386,7 @@ def _score(job: Job, model, settings: RunSettings, started: str, fit_seconds: fl
     }
     row.update(rmse_f1=errors.get("f1"), rmse_f2=errors.get("f2"), gain=float(model.gain), loss=float(model.loss))
     if settings.forward_cases > 0:
-        from ._validation import cached_validation_cases, evaluate_forward, training_box
+        from ..metrics import cached_validation_cases, evaluate_forward, training_box
 
         budget = None
         if settings.time_budget_per_job is not None:

@@ -6,7 +6,7 @@ the identical noisy dataset of a (system, SNR, realisation): the noise seed is a
 never of the method. Neural jobs of one (system, method, noise target, preset) are trained together, all realisations
 of an SNR level in one batched computation (``CharacteristicCurves.fit_many``). A resumed sweep trains what is
 left of a level, perhaps a single record, and a batch of one can differ from a larger batch in the last bits
-(see ``charcurves.fitting._problem``); ``run_sweep``'s ``batch`` and ``max_batch`` choose the batches.
+(see ``charcurves.train._problem``); ``run_sweep``'s ``batch`` and ``max_batch`` choose the batches.
 """
 
 from __future__ import annotations

@@ -77,7 +77,7 @@ from ._symbolic_fit import fit_sr_cc as fit_sr_cc
 from ._symbolic_fit import fit_symbolic as fit_symbolic
 from ._symmetry import AUTO_MEMBERS as AUTO_MEMBERS
 from ._symmetry import PARITY_THRESHOLD as PARITY_THRESHOLD
-from ._symmetry import detect_symmetry as detect_symmetry
+from ._detect import detect_symmetry as detect_symmetry
 from ._symmetry import fit_many_auto as fit_many_auto
 from ._symmetry import parity_tests as parity_tests
 from ._symmetry import resolved_estimator as resolved_estimator

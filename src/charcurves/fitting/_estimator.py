@@ -14,8 +14,10 @@ from .._bounds import check_number
 from .._errors import ConfigError, NotFittedError
 from ._methods import METHODS, check_method_options, method_curve, parse_basis_option, parse_symmetry
 from ..model import FittedModel
-from ..train import get_preset
+from ..train import get_preset, torch_threads
+from ._pipeline import run_pipeline
 from ._priors import name_prior_in_warnings, priors_record
+from ._symmetry import fit_many_auto
 
 __all__ = ["CharacteristicCurves", "fit", "MAX_SEED"]
 
@@ -169,19 +171,13 @@ class CharacteristicCurves:
         """Fit many records (noise realisations, SNR levels...); neural curves train in one batch.
         ``threads`` holds for the whole fit (warm start, training, output error), so the bytes of
         the result do not depend on the environment's OMP_NUM_THREADS."""
-        from ..train import torch_threads
-
         self.check()  # the thread count among the rest, before it is used
-        from ._symmetry import fit_many_auto
-
         with torch_threads(self.threads):
             if self.tests_priors():  # nothing asked: test the parities, impose what the record supports
                 models = fit_many_auto(self, trajectories, seeds, default=True)
             elif isinstance(self.symmetry, str) and self.symmetry.strip().lower() == "auto":
                 models = fit_many_auto(self, trajectories, seeds)  # detect parities, then fit with them
             else:
-                from ._pipeline import run_pipeline
-
                 models = run_pipeline(self, list(trajectories), seeds)
         for m in models:
             m.info["priors"] = priors_record(self, m)

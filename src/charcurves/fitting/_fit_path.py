@@ -14,7 +14,10 @@ import numpy as np
 
 from .._errors import ConfigError
 from ..templates import ESTIMATED_STICK_TOL, EquationTemplate, sticking_mask
-from ..train import TrainingPreset
+from ..train import TrainingPreset, fit_gradient, fit_linear
+from ._harmonics import harmonic_test
+from ._sticking import sticking_masks
+from ._symbolic_fit import fit_symbolic
 
 __all__ = ["fit_records", "dry_friction_test", "JUMP_F_THRESHOLD", "fitter_kind", "sticking_masks"]
 
@@ -73,33 +76,6 @@ def dry_friction_test(traj, template: EquationTemplate) -> tuple[float, float]:
     return (sse0 - sse1) / (sse1 / dof), float(c1[-1])
 
 
-def sticking_masks(records, template: EquationTemplate, estimated: list[bool], *, exclude: bool, kind: str,
-                   stick_tol="default") -> list[np.ndarray]:
-    """The samples each record fits: sticking phases (x' = 0 over a run) left out for dry friction.
-
-    The |x'| threshold is exact zeros for given derivatives and ESTIMATED_STICK_TOL (5 %) of max|x'|
-    for estimated ones (see :func:`~charcurves.templates.sticking_mask` for the rest of the test);
-    symbolic fits look for exact zeros first and then 5 %. Multi-DOF records
-    and templates without a velocity curve keep every sample.
-    """
-    out = []
-    for rec, est in zip(records, estimated):
-        n = rec.n_samples
-        if not exclude or not template.velocity_curves or getattr(rec, "v", None) is None:
-            out.append(np.ones(n, bool))
-            continue
-        if stick_tol != "default":
-            stuck = sticking_mask(rec, rel_tol=None if stick_tol is None else float(stick_tol))
-        elif kind == "symbolic":
-            stuck = sticking_mask(rec, rel_tol=None)
-            if not stuck.any():
-                stuck = sticking_mask(rec, rel_tol=ESTIMATED_STICK_TOL)
-        else:
-            stuck = sticking_mask(rec, rel_tol=ESTIMATED_STICK_TOL if est else None)
-        out.append(~stuck)
-    return out
-
-
 #: F above which an unconstrained curve gets a quadratic term. Stricter than the 0.1 % point of the
 #: other tests: on a measured record the derivatives are estimated, their errors are correlated and
 #: F's null distribution is wider (Duffing's odd f2 reached 28 at 20 dB noise on x), while a real
@@ -148,8 +124,6 @@ def resolve_jumps(reps: dict, records, template: EquationTemplate, estimated: li
 
 def _harmonics(reps: dict, rec, template: EquationTemplate, preset: TrainingPreset, jumps) -> tuple:
     """``((name, frequencies in u), ...)`` for the neural curves of one record."""
-    from ._harmonics import harmonic_test
-
     neural = {n: r for n, r in reps.items() if r.kind == "neural"}
     fixed, auto = {}, []
     for name, rep in neural.items():
@@ -230,21 +204,15 @@ def fit_records(records, template: EquationTemplate, reps: dict, preset: Trainin
     """Fit every record with the fitter the representations call for (module docstring)."""
     kind = fitter_kind(reps)
     if kind == "symbolic":
-        from ._symbolic_fit import fit_symbolic
-
         sr_keys = ("outer_iterations", "inner_generations", "tol")
         return [fit_symbolic(rec, template, reps, method=method, mask=m,
                              options={k: v for k, v in options.items() if k in sr_keys}, sr_options=sr_options,
                              random_state=int(s))
                 for rec, s, m in zip(records, seeds, masks)]
     if kind == "linear":
-        from ..train import fit_linear
-
         constant = bool(options.get("constant", True))
         return [fit_linear(rec, template, reps, method=method, mask=m, constant=constant)
                 for rec, m in zip(records, masks)]
-    from ..train import fit_gradient
-
     out: list = [None] * len(records)
     groups: dict[tuple, list[int]] = {}
     for i, rec in enumerate(records):

@@ -20,9 +20,10 @@ finished fit and says what was skipped.
 from __future__ import annotations
 
 from .._errors import ConfigError
-from ._fit_path import fit_records, fitter_kind, resolve_jumps, sticking_masks
+from ._fit_path import fit_records, fitter_kind, resolve_jumps
 from ._methods import METHODS, check_method_options
 from ..objectives import output_error_fit, resolve_objective
+from ._sticking import sticking_masks
 from ._self_check import derivative_noise, measured_state_noise, self_check
 from ._priors import name_prior_in_warnings, priors_record
 

@@ -40,6 +40,7 @@ from ..curves import SymbolicFittedCurve
 from ..symbolic import POLY_OPERATORS, TANH_OPERATORS, decompose, eval_expression, make_engine, split_terms
 from ..templates import EquationTemplate
 from ..model import finish_model
+from ._sticking import sticking_masks
 
 __all__ = ["fit_symbolic", "fit_sr", "fit_sr_cc", "OUTER_ITERATIONS", "SR_CC_OPTIONS"]
 
@@ -332,7 +333,6 @@ def _functional(joint: bool):
     def run(traj, template: EquationTemplate, *, symmetry=None, options=None, sr_options=None, random_state: int = 0,
             method: str | None = None):
         from ..curves import Symbolic
-        from ._fit_path import sticking_masks
 
         what = "SR" if joint else "SR-CC"
         if symmetry and any(v != "none" for v in symmetry.values()):

@@ -22,8 +22,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._errors import CharCurvesError, ConfigError
+from ._ensemble import fit_ensemble
+from ._methods import METHODS
 
-__all__ = ["parity_tests", "detect_symmetry", "fit_many_auto", "PARITY_THRESHOLD", "AUTO_MEMBERS",
+__all__ = ["parity_tests", "detect_parity", "fit_many_auto", "PARITY_THRESHOLD", "AUTO_MEMBERS",
            "DEFAULT_DETECTOR"]
 
 #: RMS of the normalised defect up to which a parity counts as consistent with the data
@@ -126,49 +128,10 @@ def parity_tests(ensemble, *, threshold: float = PARITY_THRESHOLD, n_grid: int =
     return out
 
 
-def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, threshold: float = PARITY_THRESHOLD,
-                    random_state: int = 0, method: str = "nn-cc", objective=None, **estimator_params) -> dict[str, dict]:
-    """Fit unconstrained NN-CC curves with a bootstrap ensemble and test their parity.
-
-    Parameters
-    ----------
-    record : Trajectory
-    estimator : CharacteristicCurves, optional
-        Settings to copy (family, gauge, gain, preset, derivatives...); its method and
-        symmetry are replaced by unconstrained NN-CC.
-    n_members : int
-        Bootstrap members.
-    threshold : float
-        See :func:`parity_tests`.
-    method : str
-        An unconstrained method for the curves tested ("nn-cc"; "poly-cc" is faster).
-    objective : optional
-        The objective of the tested fits (default: the estimator's; "equation-error" skips the
-        output-error refit of a measured record).
-    **estimator_params
-        Settings for a new estimator when none is given (e.g. ``family="separable"``).
-
-    Returns
-    -------
-    dict
-        As :func:`parity_tests`.
-
-    Examples
-    --------
-    >>> from charcurves.data import corrupt
-    >>> from charcurves.fitting import detect_symmetry
-    >>> from charcurves.systems import get_system
-    >>> record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
-    >>> tests = detect_symmetry(record, method="poly-cc")  # the default, "nn-cc", takes longer
-    >>> tests["f1"]["proposal"], tests["f2"]["proposal"]
-    ('odd', 'odd')
-    """
-    from ._ensemble import fit_ensemble
-    from ._estimator import CharacteristicCurves
-    from ._methods import METHODS
-
-    if estimator is None:
-        estimator = CharacteristicCurves(**estimator_params)
+def detect_parity(record, estimator, *, n_members: int = AUTO_MEMBERS, threshold: float = PARITY_THRESHOLD,
+                  random_state: int = 0, method: str = "nn-cc", objective=None) -> dict[str, dict]:
+    """:func:`~charcurves.fitting.detect_symmetry` with the settings of ``estimator`` (its class builds
+    the tested fits, so this module needs no estimator class of its own)."""
     params = estimator.get_params()
     params.update(method=method, symmetry=None, random_state=int(random_state), progress=None, basis=None,
                   post_sr=None)
@@ -177,19 +140,17 @@ def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, th
     if objective is not None:
         params.update(objective=objective, refine=None, refine_options=None)
     try:
-        ensemble = fit_ensemble(CharacteristicCurves(**params), record, n_members, kind="bootstrap")
+        ensemble = fit_ensemble(type(estimator)(**params), record, n_members, kind="bootstrap")
     except ConfigError as exc:
         # the residual bootstrap needs each equation's own forcing column; otherwise seeds only
         if "kind='seeds'" not in str(exc):
             raise
-        ensemble = fit_ensemble(CharacteristicCurves(**params), record, n_members, kind="seeds")
+        ensemble = fit_ensemble(type(estimator)(**params), record, n_members, kind="seeds")
     return parity_tests(ensemble, threshold=threshold)
 
 
 def _method_for(method: str, any_parity: bool) -> str:
     """The method that carries the detected priors (or none) closest to the one asked for."""
-    from ._methods import METHODS
-
     spec = METHODS[method]
     if spec.get("allows_symmetry"):
         return method
@@ -225,9 +186,6 @@ def fit_many_auto(estimator, trajectories, seeds=None, *, default: bool = False)
     >>> model.info["symmetry_auto"]["applied"], model.method
     ({'f1': 'odd', 'f2': 'odd'}, 'poly-cc')
     """
-    from ._estimator import CharacteristicCurves
-    from ._methods import METHODS
-
     if estimator.method_name() not in METHODS:
         raise ConfigError(f"symmetry='auto' works with the paper's method presets (method=...); for a composed "
                           f"template set each curve's symmetry, got method {estimator.method_name()!r}")
@@ -240,7 +198,7 @@ def fit_many_auto(estimator, trajectories, seeds=None, *, default: bool = False)
     # poly-cc fits test poly-cc curves (fast); every other method tests unconstrained NN-CC curves
     detector = "poly-cc" if spec["representation"] == "poly" or default else "nn-cc"
     try:
-        tests = [detect_symmetry(tr, estimator=estimator, random_state=int(estimator.random_state), method=detector,
+        tests = [detect_parity(tr, estimator, random_state=int(estimator.random_state), method=detector,
                                  objective="equation-error" if default else None)
                  for tr in trajectories]
     except CharCurvesError as exc:
@@ -257,7 +215,7 @@ def fit_many_auto(estimator, trajectories, seeds=None, *, default: bool = False)
     method = _method_for(estimator.method_name(), any(v != "none" for v in applied.values()))
     params = estimator.get_params()
     params.update(method=method, symmetry=dict(applied))
-    models = CharacteristicCurves(**params).fit_many(trajectories, seeds=seeds)
+    models = type(estimator)(**params).fit_many(trajectories, seeds=seeds)
     report = {
         "mode": "default (no method, no prior asked: tested)" if default else "auto",
         "applied": applied,

@@ -1,4 +1,5 @@
-"""Metrics: curve errors, separation time, trajectory RMSE, largest Lyapunov exponent."""
+"""Metrics: curve errors, separation time, trajectory RMSE, largest Lyapunov exponent, and the forward
+validation of a fitted model from new conditions (t_sep and RMSE[x] per case, paper Fig. 7)."""
 
 from ._curves import curve_errors as curve_errors
 from ._curves import curve_rmse as curve_rmse
@@ -15,3 +16,13 @@ from ._ensemble import fit_bias as fit_bias
 from ._ensemble import fit_slope_one as fit_slope_one
 from ._ensemble import miw as miw
 from ._ensemble import performance_percent as performance_percent
+from ._validation import HORIZONS as HORIZONS
+from ._validation import VALIDATION_RANGES as VALIDATION_RANGES
+from ._validation import CaseResult as CaseResult
+from ._validation import ForwardEvaluation as ForwardEvaluation
+from ._validation import ValidationCase as ValidationCase
+from ._validation import ValidationSet as ValidationSet
+from ._validation import cached_validation_cases as cached_validation_cases
+from ._validation import evaluate_forward as evaluate_forward
+from ._validation import make_validation_cases as make_validation_cases
+from ._validation import training_box as training_box

@@ -34,10 +34,10 @@ from ._engine import (
     TANH_OPERATORS,
     OperonEngine,
     SymbolicRegressionEngine,
-    make_engine,
     operators_option,
     searches_running,
 )
+from ._make import make_engine
 from ._pysr import PySREngine
 from ._expressions import eval_expression, expression_complexity, parse_infix, polish_constants, split_terms
 from ._selection import SELECTION_CRITERIA, FrontEntry, SRResult, select_model

@@ -39,7 +39,8 @@ import numpy as np
 from .._errors import ConfigError
 from ..curves import FittedCurve, SymbolicFittedCurve, jump_log_eps
 from ._selection import REL_MSE_FLOOR
-from ._engine import CLOSED_FORM_OPERATORS, POLY_OPERATORS, TANH_OPERATORS, SymbolicRegressionEngine, make_engine
+from ._engine import CLOSED_FORM_OPERATORS, POLY_OPERATORS, TANH_OPERATORS, SymbolicRegressionEngine
+from ._make import make_engine
 
 __all__ = ["distill_curve", "distill_curve_front", "has_jump", "turns", "TRIG_TURNS", "POST_SR_OPTIONS",
            "post_sr_engine", "polynomial_operators", "CLOSED_FORM_GAIN"]

@@ -86,7 +86,6 @@ __all__ = [
     "OperonEngine",
     "SRResult",
     "FrontEntry",
-    "make_engine",
     "select_model",
     "polish_constants",
     "expression_complexity",
@@ -126,7 +125,6 @@ DEFAULT_SR_OPTIONS: dict[str, Any] = {
     "max_points": 400,
 }
 SR_OPTION_KEYS = tuple(DEFAULT_SR_OPTIONS)
-_ENGINES = ("operon", "pysr")
 
 
 def check_operators(ops) -> tuple[str, ...]:
@@ -439,48 +437,6 @@ def _interruptible(fn, *args):
     if "error" in box:
         raise box["error"]
     return box["value"]
-
-
-# ---------------------------------------------------------------------------------------------
-def make_engine(sr_options: dict | None = None) -> SymbolicRegressionEngine:
-    """Build an engine from ``sr_options``.
-
-    Parameters
-    ----------
-    sr_options : dict, optional
-        Keys (all optional; :data:`DEFAULT_SR_OPTIONS`): ``engine`` ("operon" | "pysr"),
-        ``generations``, ``populations``, ``population_size``, ``max_size``, ``operators``
-        ("auto" or a list of :data:`OPERATORS`; "auto" lets the caller choose per fit, the
-        engine's own default being + - *), ``selection`` (:data:`SELECTION_CRITERIA`),
-        ``max_points`` (the search sees at most this many evenly spaced points).
-
-    Raises
-    ------
-    ConfigError
-        For unknown keys or values.
-
-    Examples
-    --------
-    >>> from charcurves.symbolic import make_engine
-    >>> engine = make_engine({"generations": 10, "operators": ["add", "sub", "mul", "tanh"]})
-    >>> engine.name, engine.generations, engine.operators
-    ('operon', 10, ('add', 'sub', 'mul', 'tanh'))
-    """
-    opts = dict(sr_options or {})
-    unknown = sorted(set(opts) - set(SR_OPTION_KEYS))
-    if unknown:
-        raise ConfigError(f"unknown sr option(s) {unknown}; valid: {', '.join(SR_OPTION_KEYS)}")
-    merged = {**DEFAULT_SR_OPTIONS, **{k: v for k, v in opts.items() if v is not None}}
-    engine = str(merged.pop("engine")).lower()
-    if engine not in _ENGINES:
-        raise ConfigError(f"unknown SR engine {engine!r}; choose one of {', '.join(_ENGINES)}")
-    ops = merged.pop("operators")
-    ops = POLY_OPERATORS if (isinstance(ops, str) and ops.strip().lower() == "auto") else check_operators(ops)
-    if engine == "operon":
-        return OperonEngine(operators=ops, **merged)
-    from ._pysr import PySREngine  # lazily: the optional backend's module imports this one
-
-    return PySREngine(operators=ops, **merged)
 
 
 def operators_option(sr_options: dict | None):

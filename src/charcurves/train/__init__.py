@@ -4,45 +4,34 @@ any mix, linear least squares and pysindy), with the training presets they read.
 
 Public API
 ----------
-TrainingPreset, PRESETS, get_preset                     how curves are built and trained
-fit_gradient, fit_linear, l0_weight                     the gradient-trained and the linear fitter
-BatchedProblem, CurveTerm, LeastSquaresProblem          problems the training loop sees
-train, train_in_chunks, train_with_preset, TrainingLog  the training loop
-EvidenceSweeps, evidence_update, initial_decay, ...     Bayesian regularisation (MacKay's evidence)
-subset_indices, is_long, train_long_record              records of more than SUBSET_SAMPLES samples
+TrainingPreset, PRESETS, get_preset      how curves are built and trained (re-exported by charcurves.fitting)
+l0_weight, constrained_sr3               the sparse linear fits' weight and SR3 solver
+EVIDENCE_GUARD, SWEEP_TOL, ...           constants of the evidence updates
+
+The layers above also import the training loop (``train``, ``torch_threads``), the problem base
+class (``LeastSquaresProblem``), the fitters (``fit_gradient``, ``fit_linear``) and
+``subset_indices`` from here; the other parts (batched problems, Adam, evidence sweeps, warm starts,
+long records) are used inside this package.
 """
 
 from ._evidence import EVIDENCE_GUARD as EVIDENCE_GUARD
 from ._evidence import EVIDENCE_SETTLED as EVIDENCE_SETTLED
 from ._evidence import SWEEP_TOL as SWEEP_TOL
-from ._evidence import EvidenceSweeps as EvidenceSweeps
-from ._evidence import decay_moves as decay_moves
-from ._evidence import evidence_update as evidence_update
-from ._evidence import initial_decay as initial_decay
-from ._evidence import set_evidence as set_evidence
-from ._evidence import with_decay as with_decay
-from ._gradient_fit import fit_gradient as fit_gradient
-from ._linear_fit import column_name as column_name
-from ._linear_fit import fit_linear as fit_linear
 from ._linear_fit import l0_weight as l0_weight
 from ._long_record import SUBSET_SAMPLES as SUBSET_SAMPLES
-from ._long_record import is_long as is_long
-from ._long_record import subset_indices as subset_indices
-from ._long_record import train_long_record as train_long_record
 from ._presets import PRESETS as PRESETS
 from ._presets import TrainingPreset as TrainingPreset
 from ._presets import get_preset as get_preset
 from ._problem import DECAY_GROUPS as DECAY_GROUPS
 from ._problem import RELEVANCE_LABEL as RELEVANCE_LABEL
-from ._problem import BatchedProblem as BatchedProblem
-from ._problem import CurveTerm as CurveTerm
-from ._problem import LeastSquaresProblem as LeastSquaresProblem
 from ._sr3 import constrained_sr3 as constrained_sr3
-from ._train import BatchedAdam as BatchedAdam
-from ._train import TrainingLog as TrainingLog
-from ._train import chunk_log as chunk_log
-from ._train import merge_logs as merge_logs
-from ._train import torch_threads as torch_threads
-from ._train import train as train
-from ._train import train_in_chunks as train_in_chunks
-from ._train import train_with_preset as train_with_preset
+
+# the interface the layers above build on (not on the API page: see the modules' docstrings)
+from ._train import torch_threads, train  # noqa: F401
+from ._gradient_fit import fit_gradient  # noqa: F401
+from ._linear_fit import fit_linear  # noqa: F401
+from ._long_record import subset_indices  # noqa: F401
+from ._problem import LeastSquaresProblem  # noqa: F401
+
+__all__ = ["DECAY_GROUPS", "EVIDENCE_GUARD", "EVIDENCE_SETTLED", "PRESETS", "RELEVANCE_LABEL", "SUBSET_SAMPLES",
+           "SWEEP_TOL", "TrainingPreset", "constrained_sr3", "get_preset", "l0_weight"]

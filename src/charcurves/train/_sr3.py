@@ -51,7 +51,7 @@ def constrained_sr3(ps, **kwargs):
     --------
     >>> import numpy as np
     >>> import pysindy as ps
-    >>> from charcurves.fitting._sr3 import constrained_sr3
+    >>> from charcurves.train._sr3 import constrained_sr3
     >>> rng = np.random.default_rng(0)
     >>> X = rng.normal(size=(200, 3)); y = X @ np.array([0.5, 0.0, 1.0]) + 0.01 * rng.normal(size=200)
     >>> kw = dict(reg_weight_lam=1e-3, regularizer="l0", relax_coeff_nu=1.0, max_iter=200,

@@ -78,7 +78,7 @@ def jump_height_columns(problem) -> list[int]:
 
     Examples
     --------
-    >>> from charcurves.fitting._train import jump_height_columns
+    >>> from charcurves.train._train import jump_height_columns
     >>> class Problem:  # no curve with a jump
     ...     terms = []
     >>> jump_height_columns(Problem())

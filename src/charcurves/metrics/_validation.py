@@ -60,7 +60,7 @@ class ValidationCase:
 
     Examples
     --------
-    >>> from charcurves.experiments import ValidationCase, make_validation_cases
+    >>> from charcurves.metrics import ValidationCase, make_validation_cases
     >>> from charcurves.systems import get_system
     >>> case = make_validation_cases(get_system("duffing"), 1, seed=0, t_end=10.0, n_points=201)[0]
     >>> isinstance(case, ValidationCase), case.t_end, case.t_eval.shape, sorted(case.to_dict())
@@ -96,7 +96,7 @@ class ValidationSet(Sequence):
 
     Examples
     --------
-    >>> from charcurves.experiments import ValidationSet, make_validation_cases
+    >>> from charcurves.metrics import ValidationSet, make_validation_cases
     >>> from charcurves.systems import get_system
     >>> cases = make_validation_cases(get_system("duffing"), 2, seed=0, t_end=10.0, n_points=201)
     >>> isinstance(cases, ValidationSet), len(cases), cases.system, sorted(cases.box)
@@ -125,7 +125,7 @@ def training_box(traj) -> dict[str, tuple[float, float]]:
 
     Examples
     --------
-    >>> from charcurves.experiments import training_box
+    >>> from charcurves.metrics import training_box
     >>> from charcurves.systems import get_system
     >>> box = training_box(get_system("duffing").simulate())
     >>> {k: (round(lo, 2), round(hi, 2)) for k, (lo, hi) in box.items()}
@@ -183,7 +183,7 @@ def make_validation_cases(system, n_cases: int = 10, *, seed: int = 0, box: Mapp
 
     Examples
     --------
-    >>> from charcurves.experiments import make_validation_cases
+    >>> from charcurves.metrics import make_validation_cases
     >>> from charcurves.systems import get_system
     >>> cases = make_validation_cases(get_system("duffing"), 2, seed=0, t_end=10.0, n_points=201)
     >>> len(cases), cases[0].t_end, cases[0].x_true.shape
@@ -247,7 +247,7 @@ def cached_validation_cases(system, n_cases: int, *, seed: int, max_attempts: in
 
     Examples
     --------
-    >>> from charcurves.experiments import cached_validation_cases
+    >>> from charcurves.metrics import cached_validation_cases
     >>> from charcurves.systems import get_system
     >>> wide = {"x": (-3.0, 3.0), "v": (-3.0, 3.0)}  # the box the true runs must stay in
     >>> cases = cached_validation_cases(get_system("duffing"), 1, seed=0, box=wide)
@@ -269,7 +269,7 @@ class CaseResult:
     Examples
     --------
     >>> import charcurves as cc
-    >>> from charcurves.experiments import CaseResult, evaluate_forward, make_validation_cases
+    >>> from charcurves.metrics import CaseResult, evaluate_forward, make_validation_cases
     >>> from charcurves.systems import get_system
     >>> system = get_system("duffing")
     >>> model = cc.fit(system.simulate(), method="parametric", basis="f1=z; f2=z, z**3")
@@ -304,7 +304,7 @@ class ForwardEvaluation:
     Examples
     --------
     >>> import charcurves as cc
-    >>> from charcurves.experiments import ForwardEvaluation, evaluate_forward, make_validation_cases
+    >>> from charcurves.metrics import ForwardEvaluation, evaluate_forward, make_validation_cases
     >>> from charcurves.systems import get_system
     >>> system = get_system("duffing")
     >>> model = cc.fit(system.simulate(), method="parametric", basis="f1=z; f2=z, z**3")
@@ -396,7 +396,7 @@ def evaluate_forward(model, system, cases, *, eps: float = 0.2, box_margin: floa
     Examples
     --------
     >>> import charcurves as cc
-    >>> from charcurves.experiments import evaluate_forward, make_validation_cases
+    >>> from charcurves.metrics import evaluate_forward, make_validation_cases
     >>> from charcurves.systems import get_system
     >>> system = get_system("duffing")
     >>> model = cc.fit(system.simulate(), method="parametric", basis="f1=z; f2=z, z**3")
@@ -404,7 +404,7 @@ def evaluate_forward(model, system, cases, *, eps: float = 0.2, box_margin: floa
     >>> result.n_cases, result.n_failed, result.n_censored
     (2, 0, 2)
     """
-    from ..metrics import separation_time, trajectory_rmse
+    from ._dynamics import separation_time, trajectory_rmse
     from ..simulate import simulate_model
 
     box = getattr(cases, "box", None)
