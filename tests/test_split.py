@@ -39,3 +39,15 @@ def test_the_names_users_imported_from_fitting_before_the_split_are_there():
     assert fitting.FittedModel.__module__ == "charcurves.model._model"
     assert fitting.TrainingPreset.__module__ == "charcurves.train._presets"
     assert fitting.OutputError.__module__ == "charcurves.objectives._objectives"
+
+
+def test_the_rule_that_adds_output_error_is_written_once():
+    from charcurves.objectives import runs_output_error
+
+    table = {(mode, estimated, preset): runs_output_error(mode, estimated, preset)
+             for mode in ("auto", "equation-error", "output-error") for estimated in (False, True)
+             for preset in ("default", "paper")}
+    assert sorted(k for k, v in table.items() if v) == [
+        ("auto", True, "default"),
+        ("output-error", False, "default"), ("output-error", False, "paper"),
+        ("output-error", True, "default"), ("output-error", True, "paper")]

@@ -248,15 +248,17 @@ def _prepared(estimator, record):
 def _beyond_raw(estimator, records) -> bool:
     """Whether the estimator's models go beyond the raw fit (post-SR, output error)."""
     from ..templates import derivatives_given
-    from ..objectives import resolve_objective
+    from ..objectives import resolve_objective, runs_output_error
 
     mode, _ = resolve_objective(estimator.objective, estimator.refine, estimator.refine_options)
-    if estimator.wants_post_sr() or mode == "output-error":
+    if estimator.wants_post_sr():
         return True
-    if mode == "auto" and estimator.preset_object().name != "paper":
-        structure = estimator.resolve()[1]
-        return not all(derivatives_given(r, structure, estimator.differentiator_value()) for r in records)
-    return False
+    name = estimator.preset_object().name
+    if mode != "auto":  # the rule does not depend on the records
+        return runs_output_error(mode, True, name)
+    structure = estimator.resolve()[1]
+    return any(runs_output_error(mode, not derivatives_given(r, structure, estimator.differentiator_value()), name)
+               for r in records)
 
 
 def _member_estimator(estimator, point):

@@ -22,7 +22,7 @@ from __future__ import annotations
 from .._errors import ConfigError
 from ._fit_path import fit_records, fitter_kind, resolve_jumps
 from ._methods import METHODS, check_method_options
-from ..objectives import output_error_fit, resolve_objective
+from ..objectives import output_error_fit, resolve_objective, runs_output_error
 from ._sticking import sticking_masks
 from ._self_check import derivative_noise, measured_state_noise, self_check
 from ._priors import name_prior_in_warnings, priors_record
@@ -99,7 +99,7 @@ def _fit_stage(est, records: list, seeds):
                            stick_tol=options.get("stick_tol", "default"))
     jumps = resolve_jumps(reps, prepared, structure, estimated, preset) if kind == "gradient" else \
         [((), (), ()) for _ in prepared]
-    use_oe = [mode == "output-error" or (mode == "auto" and e and preset.name != "paper") for e in estimated]
+    use_oe = [runs_output_error(mode, e, preset.name) for e in estimated]
     fit_preset = preset
     if all(use_oe) and preset.combine == "mean":
         # every start goes on to output error, which chooses the members afterwards (by AIC, where a

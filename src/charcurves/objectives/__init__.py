@@ -17,7 +17,7 @@ from ._output_error import output_error_fit as output_error_fit
 from ._output_error import refine_output_error as refine_output_error
 
 # the interface the layers above build on (not on the API page: see the modules' docstrings)
-from ._objectives import resolve_objective  # noqa: F401
+from ._objectives import resolve_objective, runs_output_error  # noqa: F401
 
 __all__ = ["EquationError", "OBJECTIVES", "OutputError", "free_run_diagnostics", "output_error_fit",
            "refine_output_error"]

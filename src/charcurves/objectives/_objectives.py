@@ -19,7 +19,7 @@ import numpy as np
 
 from .._errors import ConfigError
 
-__all__ = ["EquationError", "OutputError", "OBJECTIVES", "resolve_objective"]
+__all__ = ["EquationError", "OutputError", "OBJECTIVES", "resolve_objective", "runs_output_error"]
 
 #: Names accepted by ``objective=`` (and the CLI's ``--objective``).
 OBJECTIVES = ("auto", "equation-error", "output-error")
@@ -165,6 +165,14 @@ class OutputError(_Objective):
 #: ``refine_options`` of the older API -> OutputError parameters
 _REFINE_KEYS = {"hold": "hold", "substeps": "substeps", "segment_length": "segment_length", "max_nfev": "max_iter",
                 "time_budget": "time_budget"}
+
+
+def runs_output_error(mode: str, estimated: bool, preset_name: str) -> bool:
+    """Whether the fit of one record goes on from equation error to output error: when it is asked
+    (``mode`` "output-error"), or with "auto" on a record whose derivatives were estimated (equation
+    error on differentiated columns is biased by the noise on the state), except under the paper's
+    preset (its protocol is equation error). ``mode`` is :func:`resolve_objective`'s."""
+    return mode == "output-error" or (mode == "auto" and bool(estimated) and preset_name != "paper")
 
 
 def resolve_objective(objective, refine=None, refine_options=None) -> tuple[str, OutputError]:
