@@ -93,3 +93,35 @@ def test_bouc_wen_multisine_and_its_hysteresis_state():
     dw = np.gradient(s["w"], s["t"])
     rhs = c["f3"](s["w"]) * np.abs(s["v"]) + c["f4"](s["w"]) * s["v"]
     assert np.corrcoef(dw[5:-5], rhs[5:-5])[0, 1] > 0.999
+
+
+def _small_tank_fit(degree):
+    from charcurves.fitting import fit_state_space
+
+    system = TwoTank(hold=15.0)
+    record = system.simulate(n_points=150, t_end=300.0, seed=0)
+    clean = system.states(n_points=150, t_end=300.0, seed=0)
+    model = fit_state_space(StateSpace(TANKS, measured={"x2": "x"}), record, n_starts=2, degree=degree,
+                            start="linear", schedule=(16, 48), max_iter=20, substeps=1)
+    errors = {}
+    for name, true, x in [("f1", system.f1, clean["x1"]), ("f2", system.f2, clean["x2"])]:
+        z = np.linspace(x.min(), x.max(), 200)
+        errors[name] = float(np.sqrt(np.mean((model.curves[name](z) - true(z)) ** 2)) / np.std(true(z)))
+    return model, errors
+
+
+@pytest.mark.slow  # about 10 s on one core
+def test_a_small_two_tank_fit_recovers_both_outflows_with_the_upper_level_hidden():
+    model, errors = _small_tank_fit(3)
+    assert model.info["start"] == "linear" and model.info["hidden"] == ["x1"]
+    assert model.info["gauge_conditions"] == ["x1(t0) = 0"] and model.initial_state["x1"] == 0.0
+    assert [s["segment_length"] for s in model.info["stages"]] == [16, 48]
+    assert errors["f1"] < 0.3 and errors["f2"] < 0.15  # measured: 0.21 and 0.076
+    assert model.info["free_run_rmse"]["x2"] < 0.06  # noise 0.01; the levels span 0 to about 5
+    assert model.gain == pytest.approx(1.0, abs=0.1)
+
+
+@pytest.mark.slow
+def test_a_wrong_model_of_the_outflows_fails_those_tolerances():
+    _, errors = _small_tank_fit(1)  # straight outflow lines cannot drain like square roots
+    assert errors["f1"] > 0.3 and errors["f2"] > 0.15

@@ -94,7 +94,8 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
         raise ConfigError(f"hidden-state fits take no scalars yet ({', '.join(structure.scalar_names)}); write each "
                           "scalar term as a curve, e.g. f3(x1) for a1*x1")
     reps = _representations(template, structure, degree)
-    analysis = template.analysis({n: bool(r.pinned_at_zero) for n, r in reps.items()}, structure)
+    analysis = template.analysis({n: bool(r.pinned_at_zero) or n in structure.anchors for n, r in reps.items()},
+                                 structure)
     anchored = set(analysis.anchored) | set(structure.anchors)
     for n in anchored:
         if not reps[n].pinned_at_zero:
