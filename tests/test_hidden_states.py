@@ -125,3 +125,20 @@ def test_a_small_two_tank_fit_recovers_both_outflows_with_the_upper_level_hidden
 def test_a_wrong_model_of_the_outflows_fails_those_tolerances():
     _, errors = _small_tank_fit(1)  # straight outflow lines cannot drain like square roots
     assert errors["f1"] > 0.3 and errors["f2"] > 0.15
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--measured", "x2=y"], "no state column 'y'"),
+    (["--measured", "x1=x", "--equation", "x1' = g*F - f1(x1); x2' = - f2(x2)"],
+     "the hidden state x2 enters no equation of a measured state"),
+    (["--measured", "x2"], "--measured 'x2': write state=column pairs"),
+])
+def test_cli_refuses_bad_hidden_state_fits_with_one_line(tmp_path, capsys, extra, message):
+    from charcurves.cli import main
+
+    csv = tmp_path / "tank.csv"
+    TwoTank().simulate(n_points=101, t_end=100.0).to_csv(csv)
+    args = ["fit", str(csv), "--out", str(tmp_path / "out"), "--equation", TANKS, *extra]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0] and "Traceback" not in err[0]

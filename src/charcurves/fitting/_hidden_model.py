@@ -177,7 +177,7 @@ class StateSpaceModel:
 
     def summary(self) -> dict[str, Any]:
         """What ``result.json`` holds: the template, gain, initial state, gauges and the fit's report."""
-        return {"equation": self.structure.text, "gain": self.gain, "initial_state": self.initial_state,
+        return {"equation": getattr(self.template, "written", self.structure.text), "gain": self.gain, "initial_state": self.initial_state,
                 "curves": {n: {"argument": c.argument, "domain": list(c.domain)} for n, c in self.curves.items()},
                 **{k: v for k, v in self.info.items()}}
 
