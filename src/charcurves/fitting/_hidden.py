@@ -74,11 +74,11 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     >>> from charcurves.systems import TwoTank
     >>> from charcurves.templates import StateSpace
     >>> from charcurves.fitting import fit_state_space
-    >>> record = TwoTank().simulate(n_points=301, t_end=300.0, seed=0)
+    >>> record = TwoTank().simulate(n_points=81, t_end=160.0, seed=0)
     >>> template = StateSpace("x1' = g*F - f1(x1); x2' = f1(x1) - f2(x2)", measured={"x2": "x"})
-    >>> model = fit_state_space(template, record, n_starts=2, degree=3, schedule=(16, 301), max_iter=15)
-    >>> model.info["start"], model.info["hidden"]
-    ('growing', ['x1'])
+    >>> model = fit_state_space(template, record, n_starts=1, degree=2, schedule=(16,), max_iter=5, substeps=1)
+    >>> model.info["start"], model.info["hidden"], model.info["gauge_conditions"]
+    ('growing', ['x1'], ['x1(t0) = 0'])
     """
     started = time.perf_counter()
     if start not in START_NAMES:

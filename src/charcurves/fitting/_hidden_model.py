@@ -130,6 +130,17 @@ class StateSpaceModel:
     info : dict
         ``start`` (which start ran), ``stages`` (segment length and loss per stage), ``hidden``,
         ``gauge_freedoms``, ``gauge_conditions``, ``free_run_rmse``, ``seconds``.
+
+    Examples
+    --------
+    >>> from charcurves.fitting import fit_state_space
+    >>> from charcurves.systems import TwoTank
+    >>> from charcurves.templates import StateSpace
+    >>> record = TwoTank().simulate(n_points=81, t_end=160.0, seed=0)
+    >>> template = StateSpace("x1' = g*F - f1(x1); x2' = f1(x1) - f2(x2)", measured={"x2": "x"})
+    >>> model = fit_state_space(template, record, n_starts=1, degree=2, schedule=(16,), max_iter=5, substeps=1)
+    >>> sorted(model.simulate(record)), model.initial_state["x1"]
+    (['x1', 'x2'], 0.0)
     """
 
     def __init__(self, template, structure, curves: dict, gain: float, initial_state: dict, info: dict):

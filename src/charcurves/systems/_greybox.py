@@ -47,9 +47,9 @@ class TwoTank:
     >>> from charcurves.systems import TwoTank
     >>> record = TwoTank().simulate(n_points=201, t_end=200.0, seed=0)
     >>> record.n_samples, round(float(record.x[0]), 3)
-    (201, 0.005)
+    (201, 0.001)
     >>> round(float(TwoTank().f1(4.0)), 4)
-    1.7764
+    1.7889
     """
 
     k1: float = 1.0
@@ -121,9 +121,9 @@ class BoucWen:
     --------
     >>> from charcurves.systems import BoucWen
     >>> system = BoucWen()
-    >>> record = system.simulate(system.multisine(seed=0, period=750), seed=0)
+    >>> record = system.simulate(system.multisine(seed=0, period=150), seed=0)
     >>> record.n_samples, round(record.dt * 750, 6)
-    (750, 1.0)
+    (150, 1.0)
     """
 
     m: float = 2.0

@@ -79,6 +79,13 @@ class HiddenAnalysis:
         The gain is held at its value (it fixes a hidden state's scale).
     freedoms : tuple of str
         Each gauge freedom of a hidden state and how it is fixed (reported in results).
+
+    Examples
+    --------
+    >>> from charcurves.templates import StateSpace
+    >>> analysis = StateSpace("x1' = g*F - f1(x1); x2' = f2(x1) - f3(x2)", measured="x2=x").analysis()
+    >>> analysis.gain_fixed, analysis.freedoms[1]
+    (True, 'the scale of hidden x1 trades with the gain g; fixed by g = 1')
     """
 
     measured: dict
