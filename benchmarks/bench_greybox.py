@@ -10,7 +10,8 @@ Each case fits a :class:`~charcurves.templates.StateSpace` template by
   the noise's own RMSE (the true model's free-run RMSE on the same noisy record);
 * the cost (seconds, one thread).
 
-Cases: ``two-tank`` (``TwoTank``, 1000 samples over 1000 s, noise 0.01 on the lower level, the
+Cases: ``two-tank`` (and ``two-tank-anchored``: both outflows a basis z..z**5 without a constant,
+f(0) = 0) (``TwoTank``, 1000 samples over 1000 s, noise 0.01 on the lower level, the
 upper level hidden; both starts of ``fit_state_space``), ``two-dof-x1`` (the paper's two-DOF
 system, 1500 samples over 60 s, noise on x1 at 40 dB, x2 hidden), ``bouc-wen`` (``BoucWen``,
 ``--bw-samples`` multisine samples for training, the test multisine and sweep records for the free
@@ -39,7 +40,8 @@ def nrmse(fitted, true, lo, hi) -> float:
     return float(np.sqrt(np.mean((np.asarray(fitted(z), dtype=float) - t) ** 2)) / np.std(t))
 
 
-def two_tank(start: str, n_starts: int, seed: int) -> dict:
+def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False) -> dict:
+    from charcurves.curves import Basis
     from charcurves.fitting import fit_state_space
     from charcurves.systems import TwoTank
     from charcurves.templates import StateSpace
@@ -48,12 +50,14 @@ def two_tank(start: str, n_starts: int, seed: int) -> dict:
     record = system.simulate(n_points=1000, t_end=1000.0, seed=seed)
     clean = system.states(n_points=1000, t_end=1000.0, seed=seed)
     test = system.simulate(n_points=1000, t_end=1000.0, seed=seed + 100)
-    template = StateSpace("x1' = g*F - f1(x1); x2' = f1(x1) - f2(x2)", measured={"x2": "x"})
+    # anchored: an empty tank does not drain, f(0) = 0 (a basis without the constant)
+    curves = {n: Basis("z, z**2, z**3, z**4, z**5") for n in ("f1", "f2")} if anchored else {}
+    template = StateSpace("x1' = g*F - f1(x1); x2' = f1(x1) - f2(x2)", measured={"x2": "x"}, **curves)
     t0 = time.perf_counter()
     model = fit_state_space(template, record, start=start, n_starts=n_starts, seed=seed)
     seconds = time.perf_counter() - t0
     return {
-        "case": "two-tank", "start": start, "seed": seed, "seconds": seconds,
+        "case": "two-tank" + ("-anchored" if anchored else ""), "start": start, "seed": seed, "seconds": seconds,
         "f1_nrmse": nrmse(model.curves["f1"], system.f1, clean["x1"].min(), clean["x1"].max()),
         "f2_nrmse": nrmse(model.curves["f2"], system.f2, clean["x2"].min(), clean["x2"].max()),
         "gain": model.gain, "free_run_rmse_train": model.info["free_run_rmse"]["x2"],
@@ -134,8 +138,8 @@ def main(argv=None) -> int:
         for start in args.starts.split(","):
             t0 = time.perf_counter()
             try:
-                if case == "two-tank":
-                    row = two_tank(start, args.n_starts, args.seed)
+                if case in ("two-tank", "two-tank-anchored"):
+                    row = two_tank(start, args.n_starts, args.seed, anchored=case.endswith("anchored"))
                 elif case == "two-dof-x1":
                     row = two_dof_x1(start, args.n_starts, args.seed)
                 elif case == "bouc-wen":
