@@ -16,7 +16,7 @@ def cmd_fit_hidden(a) -> int:
     from ..fitting import fit_state_space
     from ..io import atomic_write_bytes, json_bytes
     from ..templates import StateSpace, parse_measured
-    from ._common import UsageError, make_out_dir, say
+    from ._common import UsageError, make_out_dir, say, warn
 
     if not a.equation:
         raise UsageError("--measured needs --equation with the state equations, e.g. --equation \"x1' = g*F - f1(x1); "
@@ -25,6 +25,7 @@ def cmd_fit_hidden(a) -> int:
     template = StateSpace(a.equation, measured=measured, free_gain=bool(a.free_gain))
     structure = template.structure()
     columns = sorted(set(measured.values()))
+    record: Trajectory | MultiTrajectory
     if columns == ["x"] and list(structure.forces) == ["F"]:
         record = Trajectory.from_csv(a.csv, time_col=a.time_col or "t", x_col="x", force_col="F", rows=a.rows)
     else:
@@ -34,7 +35,8 @@ def cmd_fit_hidden(a) -> int:
     result = model.summary()
     result["curves_on_grid"] = {}
     for name, curve in model.curves.items():
-        z = np.linspace(*curve.domain, 101)
+        lo, hi = curve.domain
+        z = np.linspace(float(lo), float(hi), 101)
         result["curves_on_grid"][name] = {"z": z.tolist(), "f": np.asarray(curve(z), dtype=float).tolist()}
     result.pop("seconds", None)  # wall-clock time: timing.json (result.json is what the inputs determine)
     for stage in result.get("stages", []):
@@ -48,5 +50,7 @@ def cmd_fit_hidden(a) -> int:
              *[f"  free-run RMSE of {s}: {v:.4g}" for s, v in model.info["free_run_rmse"].items()],
              f"wrote {os.path.join(a.out, 'result.json')}"]
     atomic_write_bytes(os.path.join(a.out, "summary.txt"), ("\n".join(lines) + "\n").encode())
+    for line in model.info.get("warnings", []):
+        warn(line)
     say("\n".join(lines), a.quiet)
     return 0

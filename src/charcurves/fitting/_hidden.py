@@ -145,7 +145,12 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
             + (["g fixed"] if analysis.gain_fixed else []),
             "substeps": sub, "hold": hold, "seconds": time.perf_counter() - started}
     model = StateSpaceModel(template, structure, curves, float(gain[best]), dict(zip(fm.layout, x0.tolist())), info)
-    model.info["free_run_rmse"] = model.free_run_rmse(record)
+    model.info["free_run_rmse"] = rmse = model.free_run_rmse(record)
+    model.info["warnings"] = [] if all(np.isfinite(v) for v in rmse.values()) else [
+        "the free run of the whole record diverges from the fitted initial state (the segments fit, the "
+        "model is not stable over the record); give more starts (n_starts), a longer last segment (schedule) "
+        "or lower-degree curves"]
+    model.info["status"] = "ok" if not model.info["warnings"] else "free run diverges"
     return model
 
 
