@@ -254,6 +254,10 @@ def cmd_fit(a) -> int:
     from ._common import refuse_inputs_among_outputs
 
     refuse_inputs_among_outputs({"record": a.csv}, [os.path.join(a.out, name) for name in FIT_OUTPUTS + (FOLDER_LOCK_NAME,)])
+    if getattr(a, "measured", None):
+        from ._hidden import cmd_fit_hidden
+
+        return cmd_fit_hidden(a)
     traj = read_record(a.csv, family=a.family, equation=a.equation, time_col=time_column(a.time_col), x_col=a.x_col,
                        force_col=a.force_col, sample_rate=a.sample_rate, rows=a.rows)
     truth = None

@@ -68,6 +68,11 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     f.add_argument("--equation", default=None,
                    help="your own template instead of a family, e.g. \"x'' + a1*x' + f1(x) = F\" "
                         "(several equations separated by ';')")
+    f.add_argument("--measured", default=None,
+                   help="with --equation of state equations: the measured states and their columns, e.g. x2=x; "
+                        "every other state is hidden (fitted by output error from seeded starts)")
+    f.add_argument("--start", default="growing", choices=("growing", "linear"),
+                   help="with --measured: how the hidden-state fit starts (default growing)")
     f.add_argument("--method", default=None,
                    help=f"one of: {', '.join(METHODS)} (default: nn-cc with the parity priors the record supports, "
                         "tested first; nn-cc+sym with --sym)")

@@ -18,6 +18,8 @@ from ._output_error import refine_output_error as refine_output_error
 
 # the interface the layers above build on (not on the API page: see the modules' docstrings)
 from ._objectives import resolve_objective, runs_output_error  # noqa: F401
+from ._output_error import choose_substeps  # noqa: F401
+from ._shooting import CurveBlock, ShootingProblem  # noqa: F401
 
 __all__ = ["EquationError", "OBJECTIVES", "OutputError", "free_run_diagnostics", "output_error_fit",
            "refine_output_error"]

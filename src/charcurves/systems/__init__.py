@@ -21,10 +21,11 @@ from ._stick_slip import StickSlip
 
 __all__ = ["BenchmarkSystem", "Duffing", "StickSlip", "VanDerPolDamping", "FirstOrderSystem", "TwoDOF",
            "corrupt_forces", "get_system", "SYSTEM_NAMES", "MAX_SIMULATE_POINTS", "MAX_SIMULATE_SPAN",
-           "sample_times", "CurveSystem", "CURVE_SYSTEM_FAMILIES"]
+           "sample_times", "CurveSystem", "CURVE_SYSTEM_FAMILIES", "TwoTank", "BoucWen"]
 
 from ._curve_system import CURVE_SYSTEM_FAMILIES, CurveSystem  # noqa: E402
 from ._families import FirstOrderSystem, TwoDOF, VanDerPolDamping, corrupt_forces  # noqa: E402
+from ._greybox import BoucWen, TwoTank  # noqa: E402
 
 _REGISTRY: dict[str, type[BenchmarkSystem] | type[TwoDOF]] = {
     "duffing": Duffing, "stick-slip": StickSlip, "van-der-pol": VanDerPolDamping, "first-order": FirstOrderSystem,

@@ -29,3 +29,6 @@ from ._structure import FAMILY_EQUATIONS as FAMILY_EQUATIONS
 from ._structure import EquationTemplate as EquationTemplate
 from ._structure import evaluate_signal as evaluate_signal
 from ._structure import record_columns as record_columns
+from ._state_space import HiddenAnalysis as HiddenAnalysis
+from ._state_space import StateSpace as StateSpace
+from ._state_space import parse_measured as parse_measured

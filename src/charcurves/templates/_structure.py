@@ -194,8 +194,8 @@ class EquationTemplate:
         import sympy as sp
 
         syms = sorted(sp.sympify(r).free_symbols | sp.sympify(u).free_symbols, key=lambda s: s.name)
-        if not sp.sympify(r).free_symbols or len(syms) <= 1:
-            return True  # a constant, or both depend on one and the same symbol
+        if len(syms) <= 1 or not sp.sympify(r).free_symbols & sp.sympify(u).free_symbols:  # a constant, or both
+            return len(syms) <= 1 or bool(np.ptp(np.nan_to_num(self._eval(r))) <= 1e-9)  # of one symbol; sign(x1')
         gu = np.stack([self._eval(sp.diff(u, s)) for s in syms])
         gr = np.stack([self._eval(sp.diff(r, s)) for s in syms])
         for k in range(gu.shape[1]):

@@ -1,0 +1,159 @@
+"""Grey-box targets of issue 47 (hidden states): two-tank, two-DOF with x1 only, Bouc-Wen.
+
+Each case fits a :class:`~charcurves.templates.StateSpace` template by
+:func:`~charcurves.fitting.fit_state_space` and scores
+
+* each curve by its normalised RMSE: the RMSE against the true curve over the argument range the
+  true (clean) states visit, 400 points, divided by the true curve's standard deviation there (as
+  benchmarks/bench_zoo.py);
+* the free run: RMSE of one free run of the whole record against the noisy measured signal, beside
+  the noise's own RMSE (the true model's free-run RMSE on the same noisy record);
+* the cost (seconds, one thread).
+
+Cases: ``two-tank`` (and ``two-tank-anchored``: both outflows a basis z..z**5 without a constant,
+f(0) = 0) (``TwoTank``, 1000 samples over 1000 s, noise 0.01 on the lower level, the
+upper level hidden; both starts of ``fit_state_space``), ``two-dof-x1`` (the paper's two-DOF
+system, 1500 samples over 60 s, noise on x1 at 40 dB, x2 hidden), ``bouc-wen`` (``BoucWen``,
+``--bw-samples`` multisine samples for training, the test multisine and sweep records for the free
+run).
+
+Run: ``python benchmarks/bench_greybox.py [--cases two-tank,two-dof-x1,bouc-wen] [--out DIR]``;
+results go to ``DIR/results.json`` (default benchmarks/results/greybox).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def nrmse(fitted, true, lo, hi) -> float:
+    z = np.linspace(lo, hi, 400)
+    t = np.asarray(true(z), dtype=float)
+    return float(np.sqrt(np.mean((np.asarray(fitted(z), dtype=float) - t) ** 2)) / np.std(t))
+
+
+def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False) -> dict:
+    from charcurves.curves import Basis
+    from charcurves.fitting import fit_state_space
+    from charcurves.systems import TwoTank
+    from charcurves.templates import StateSpace
+
+    system = TwoTank()
+    record = system.simulate(n_points=1000, t_end=1000.0, seed=seed)
+    clean = system.states(n_points=1000, t_end=1000.0, seed=seed)
+    test = system.simulate(n_points=1000, t_end=1000.0, seed=seed + 100)
+    # anchored: an empty tank does not drain, f(0) = 0 (a basis without the constant)
+    curves = {n: Basis("z, z**2, z**3, z**4, z**5") for n in ("f1", "f2")} if anchored else {}
+    template = StateSpace("x1' = g*F - f1(x1); x2' = f1(x1) - f2(x2)", measured={"x2": "x"}, **curves)
+    t0 = time.perf_counter()
+    model = fit_state_space(template, record, start=start, n_starts=n_starts, seed=seed)
+    seconds = time.perf_counter() - t0
+    return {
+        "case": "two-tank" + ("-anchored" if anchored else ""), "start": start, "seed": seed, "seconds": seconds,
+        "f1_nrmse": nrmse(model.curves["f1"], system.f1, clean["x1"].min(), clean["x1"].max()),
+        "f2_nrmse": nrmse(model.curves["f2"], system.f2, clean["x2"].min(), clean["x2"].max()),
+        "gain": model.gain, "free_run_rmse_train": model.info["free_run_rmse"]["x2"],
+        "free_run_rmse_test": model.free_run_rmse(test)["x2"],
+        "noise_rmse_train": float(np.sqrt(np.mean((record.x - clean["x2"]) ** 2))),
+        "stages": model.info["stages"], "gauges": model.info["gauge_freedoms"],
+    }
+
+
+def two_dof_x1(start: str, n_starts: int, seed: int) -> dict:
+    from charcurves.data import MultiTrajectory
+    from charcurves.fitting import fit_state_space
+    from charcurves.systems import TwoDOF
+    from charcurves.templates import StateSpace
+
+    system = TwoDOF()
+    clean = system.simulate(t_end=60.0, n_points=1500)
+    x1 = np.asarray(clean.states["x1"])
+    sigma = np.sqrt(np.mean(x1 ** 2)) / 100.0  # 40 dB
+    noisy = x1 + np.random.default_rng(seed).normal(0.0, sigma, x1.size)
+    record = MultiTrajectory(clean.t, {"x1": noisy}, dict(clean.forces))
+    template = StateSpace("x1'' + f1(x1') + f2(x1 - x2) = F1; x2'' + f3(x2') + f4(x2 - x1) = F2",
+                          measured={"x1": "x1"})
+    t0 = time.perf_counter()
+    model = fit_state_space(template, record, start=start, n_starts=n_starts, seed=seed)
+    seconds = time.perf_counter() - t0
+    v1 = np.gradient(x1, clean.t)
+    x2 = np.asarray(clean.states["x2"])
+    v2 = np.gradient(x2, clean.t)
+    ranges = {"f1": (v1.min(), v1.max()), "f2": ((x1 - x2).min(), (x1 - x2).max()),
+              "f3": (v2.min(), v2.max()), "f4": ((x2 - x1).min(), (x2 - x1).max())}
+    truth = system.true_curves()
+    return {"case": "two-dof-x1", "start": start, "seed": seed, "seconds": seconds,
+            **{f"{n}_nrmse": nrmse(model.curves[n], truth[n], *ranges[n]) for n in truth},
+            "free_run_rmse_train": model.info["free_run_rmse"]["x1"], "noise_rmse_train": float(sigma),
+            "stages": model.info["stages"], "gauges": model.info["gauge_freedoms"]}
+
+
+def bouc_wen(start: str, n_starts: int, seed: int, samples: int) -> dict:
+    from charcurves.fitting import fit_state_space
+    from charcurves.systems import BoucWen
+    from charcurves.templates import StateSpace
+
+    system = BoucWen()
+    train = system.simulate(system.multisine(seed=seed, period=samples), seed=seed)
+    tests = {"multisine": system.multisine(seed=seed + 100, period=8192), "sweep": system.sweep(8192)}
+    template = StateSpace("x1'' + f1(x1') + f2(x1) + x2 = g*F; x2' = f3(x2)*Abs(x1') + f4(x2)*x1'",
+                          measured={"x1": "x"})
+    t0 = time.perf_counter()
+    model = fit_state_space(template, train, start=start, n_starts=n_starts, seed=seed)
+    seconds = time.perf_counter() - t0
+    out = {"case": "bouc-wen", "start": start, "seed": seed, "samples": samples, "seconds": seconds,
+           "gain": model.gain, "free_run_rmse_train": model.info["free_run_rmse"]["x1"],
+           "stages": model.info["stages"], "gauges": model.info["gauge_freedoms"]}
+    for name, u in tests.items():
+        rec = system.simulate(u, seed=seed + 7)
+        clean = system.states(u)
+        out[f"test_{name}_rmse"] = model.free_run_rmse(rec)["x1"]
+        out[f"test_{name}_true_model_rmse"] = float(np.sqrt(np.mean((rec.x - clean["y"]) ** 2)))
+    return out
+
+
+def main(argv=None) -> int:
+    import torch
+
+    torch.set_num_threads(1)
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--cases", default="two-tank,two-dof-x1,bouc-wen")
+    p.add_argument("--starts", default="growing,linear")
+    p.add_argument("--n-starts", type=int, default=4)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--bw-samples", type=int, default=1000)
+    p.add_argument("--out", default=os.path.join(HERE, "results", "greybox"))
+    args = p.parse_args(argv)
+    os.makedirs(args.out, exist_ok=True)
+    path = os.path.join(args.out, "results.jsonl")
+    for case in args.cases.split(","):
+        for start in args.starts.split(","):
+            t0 = time.perf_counter()
+            try:
+                if case in ("two-tank", "two-tank-anchored"):
+                    row = two_tank(start, args.n_starts, args.seed, anchored=case.endswith("anchored"))
+                elif case == "two-dof-x1":
+                    row = two_dof_x1(start, args.n_starts, args.seed)
+                elif case == "bouc-wen":
+                    row = bouc_wen(start, args.n_starts, args.seed, args.bw_samples)
+                else:
+                    raise SystemExit(f"unknown case {case!r}")
+            except Exception as exc:  # a failure of the library is a result too
+                row = {"case": case, "start": start, "error": f"{type(exc).__name__}: {exc}",
+                       "seconds": time.perf_counter() - t0}
+            with open(path, "a") as fh:
+                fh.write(json.dumps(row) + "\n")
+            print(json.dumps({k: v for k, v in row.items() if k != "stages"}), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,421 @@
+"""Output error with hidden states: a state-space template fitted to the measured states only.
+
+Equation error cannot run on a hidden state (it has no data), so the fit starts without it. The
+template's ODE (:class:`~charcurves.templates.ForwardModel`) is integrated by the multiple-shooting
+problem of output error (:class:`~._shooting.ShootingProblem`); the measured states are its output,
+every segment's initial state (hidden entries included) is a parameter tied to the previous
+segment's end by continuity residuals, and the gauges of the hidden states
+(:class:`~charcurves.templates.StateSpace`) are fixed: a hidden offset by an initial value held
+fixed or by curves anchored at 0, a hidden scale by the gain held fixed.
+
+The start (``start``):
+
+* ``"growing"``: ``n_starts`` seeded starts (rows of one batched Levenberg-Marquardt), each with
+  linear curves of random slopes (the sign of a curve of its own equation's state chosen
+  restoring); the segments grow from 16 samples to the whole record (``schedule``), each stage
+  starting from the previous one's curves and its simulated states at the new segment starts.
+* ``"linear"``: the same stages, the first two with every curve linear (a linear state-space model),
+  then the full curves.
+
+After each stage the curves are re-expressed on the range their (hidden) arguments now visit (exact
+for polynomial bases). The best row by data loss is the model.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from .._errors import ConfigError, DataError
+from ..curves import LinearCurve
+from ..objectives import choose_substeps
+from ._hidden_model import StateSpaceModel, build_problem, record_table, simulate_states
+
+__all__ = ["fit_state_space", "START_NAMES"]
+
+#: The starts :func:`fit_state_space` offers (module docstring).
+START_NAMES = ("growing", "linear")
+
+
+def fit_state_space(template, record, *, start: str = "growing", n_starts: int = 4, seed: int = 0, degree: int = 6,
+                    schedule=None, substeps: int | None = None, hold: str = "linear", max_iter: int = 40,
+                    continuity: float = 10.0, time_budget: float = 600.0) -> StateSpaceModel:
+    """Fit a :class:`~charcurves.templates.StateSpace` template with hidden states by output error.
+
+    Parameters
+    ----------
+    template : StateSpace
+        The template, its measured map and curve representations (unset: polynomials of ``degree``;
+        curves anchored at 0 get a basis without a constant).
+    record : Trajectory or MultiTrajectory
+        Uniformly sampled; the measured map names its columns (``x`` of a Trajectory, ``x1``... of
+        a MultiTrajectory) and the template's forcings must be among its columns.
+    start : {"growing", "linear"}
+        How the fit starts without equation error (module docstring); ``info["start"]`` reports it.
+    n_starts, seed : int
+        Seeded starts, trained together; the best one is kept.
+    schedule : sequence of int, optional
+        Segment lengths of the stages (default 16, 64, 256, capped by the record's length).
+    substeps : int, optional
+        RK4 steps per sample (default: output error's choice from the measured signal's spectrum).
+    max_iter : int
+        Levenberg-Marquardt iterations per stage.
+    time_budget : float
+        Seconds; a stage past it is the last.
+
+    Returns
+    -------
+    StateSpaceModel
+
+    Examples
+    --------
+    >>> from charcurves.systems import TwoTank
+    >>> from charcurves.templates import StateSpace
+    >>> from charcurves.fitting import fit_state_space
+    >>> record = TwoTank().simulate(n_points=81, t_end=160.0, seed=0)
+    >>> template = StateSpace("x1' = g*F - f1(x1); x2' = f1(x1) - f2(x2)", measured={"x2": "x"})
+    >>> model = fit_state_space(template, record, n_starts=1, degree=2, schedule=(16,), max_iter=5, substeps=1)
+    >>> model.info["start"], model.info["hidden"], model.info["gauge_conditions"]
+    ('growing', ['x1'], ['x1(t0) = 0'])
+    """
+    started = time.perf_counter()
+    if start not in START_NAMES:
+        raise ConfigError(f"unknown start {start!r}; choose one of {', '.join(START_NAMES)}")
+    if not hasattr(template, "analysis"):
+        raise ConfigError("fit_state_space needs a StateSpace template, e.g. StateSpace(\"x1' = g*F - f1(x1); "
+                          "x2' = f1(x1) - f2(x2)\", measured={'x2': 'x'})")
+    structure = template.structure()
+    from ..templates import ForwardModel
+
+    fm = ForwardModel(structure)
+    if structure.scalar_names:
+        raise ConfigError(f"hidden-state fits take no scalars yet ({', '.join(structure.scalar_names)}); write each "
+                          "scalar term as a curve, e.g. f3(x1) for a1*x1")
+    reps = _representations(template, structure, degree)
+    analysis = template.analysis({n: bool(r.pinned_at_zero) or n in structure.anchors for n, r in reps.items()},
+                                 structure)
+    anchored = set(analysis.anchored) | set(structure.anchors)
+    for n in anchored:
+        if not reps[n].pinned_at_zero:
+            reps[n] = _pinned(degree)
+    cols, dt = record_table(record, analysis.measured, structure.forces)
+    n = len(cols["t"])
+    if n < 16:
+        raise DataError(f"the record has {n} samples, too few for output error; give at least 16")
+    sub = int(substeps or choose_substeps(cols[next(iter(analysis.measured.values()))]))
+    sched = [min(int(L), n) for L in (schedule or (16, 64, 256))]
+    rng = np.random.default_rng(seed)
+    B = int(n_starts)
+    data_state = _measured_layout(fm, cols, analysis.measured, dt)  # (n, D) with NaN for hidden entries
+    scale = np.array([np.nanstd(data_state[:, d]) if np.isfinite(data_state[:, d]).any() else np.nan
+                      for d in range(fm.n_state)])
+    typical = float(np.nanmean(scale[np.isfinite(scale)])) if np.isfinite(scale).any() else 1.0
+    scale = np.where(np.isfinite(scale) & (scale > 0), scale, typical)
+    tau = _time_scale(cols, analysis.measured)
+    shared = _start_shared(fm, structure, reps, analysis, scale, tau, rng, B, start)
+    gain = np.full(B, float(structure.gain))
+    # the start's free run gives the hidden states' first guess
+    traj = simulate_states(fm, shared, gain, _initial(fm, data_state, analysis, B), cols, dt, sub, hold)
+    log: list[dict[str, Any]] = []
+    stages = [(L, start == "linear" and k < 2) for k, L in enumerate(sched)]
+    for k, (L, linear) in enumerate(stages):
+        shared = [_renormalise(c, traj[..., c.arg_layout] if c.arg_layout is not None else
+                               c.argument_values(fm, traj, cols), linear) for c in shared]
+        traj, gain, loss = _stage(fm, structure, shared, gain, traj, data_state, analysis, cols, dt, sub, hold, L,
+                                  max_iter, continuity, scale, started + time_budget)
+        log.append({"segment_length": int(L), "linear_curves": bool(linear),
+                    "loss": [float(v) for v in loss], "seconds": time.perf_counter() - started})
+        if time.perf_counter() - started > time_budget and k < len(stages) - 1:
+            log[-1]["stopped"] = "time budget"
+            break
+    finite = np.isfinite(loss)
+    if not finite.any():
+        raise DataError("the free run of every start diverges; give a shorter record, more starts (n_starts) or "
+                        "a template whose states stay bounded")
+    best = int(np.argmin(np.where(finite, loss, np.inf)))
+    curves = {c.name: c.fitted(best) for c in shared}
+    x0 = traj[best, 0].copy()
+    info = {"objective": "output-error (hidden states)", "start": start, "n_starts": B, "seed": int(seed),
+            "best_start": best, "stages": log, "hidden": list(analysis.hidden), "measured": dict(analysis.measured),
+            "gauge_freedoms": list(analysis.freedoms),
+            "gauge_conditions": [f"{a}(0) = 0" for a in sorted(anchored)]
+            + [f"{h}(t0) = {v:g}" for h, v in analysis.fixed_initial.items()]
+            + (["g fixed"] if analysis.gain_fixed else []),
+            "substeps": sub, "hold": hold, "seconds": time.perf_counter() - started}
+    model = StateSpaceModel(template, structure, curves, float(gain[best]), dict(zip(fm.layout, x0.tolist())), info)
+    model.info["free_run_rmse"] = rmse = model.free_run_rmse(record)
+    model.info["warnings"] = [] if all(np.isfinite(v) for v in rmse.values()) else [
+        "the free run of the whole record diverges from the fitted initial state (the segments fit, the "
+        "model is not stable over the record); give more starts (n_starts), a longer last segment (schedule) "
+        "or lower-degree curves"]
+    model.info["status"] = "ok" if not model.info["warnings"] else "free run diverges"
+    return model
+
+
+# ---------------------------------------------------------------------------------------------- pieces
+class _Curve:
+    """One curve across the starts: representation, per-row normalisation and coefficients."""
+
+    def __init__(self, name, rep, argument, arg_layout, center, half, theta):
+        self.name, self.rep, self.argument, self.arg_layout = name, rep, argument, arg_layout
+        self.center, self.half, self.theta = center, half, theta  # (B,), (B,), (B, p)
+
+    def param(self):
+        from ..curves import LinearParametrisation
+
+        return LinearParametrisation(_WithConstant(self.rep) if _needs_constant(self.rep) else self.rep)
+
+    def values(self, u):
+        """``(B, N)`` values at arguments ``u`` ``(B, N)``."""
+        import torch
+
+        z = torch.as_tensor((u - self.center[:, None]) / self.half[:, None])
+        return self.param().evaluate(torch.as_tensor(self.theta), z).numpy()
+
+    def argument_values(self, fm, traj, cols):
+        from ..templates import evaluate_signal
+
+        B = traj.shape[0]
+        out = []
+        for b in range(B):
+            c = dict(cols)
+            c.update({name: traj[b, :, d] for d, name in enumerate(fm.layout)})
+            out.append(evaluate_signal(fm.curves[self.name].expr, c, traj.shape[1]))
+        return np.stack(out)
+
+    def fitted(self, b):
+        from ..curves import LinearFittedCurve
+
+        lo, hi = self.domain[b]
+        theta, constant = self.theta[b], 0.0
+        if _needs_constant(self.rep):
+            theta, constant = theta[1:], float(theta[0])
+        return LinearFittedCurve(self.name, self.argument, (float(lo), float(hi)), self.rep, theta,
+                                 float(self.center[b]), float(self.half[b]), constant)
+
+
+def _needs_constant(rep) -> bool:
+    """A polynomial's constant lives outside its basis (in the fitted curve's ``constant``): here it
+    is a coefficient, since output error has no other place for it."""
+    from ..curves import Polynomial
+
+    return isinstance(rep, Polynomial) and not rep.pinned_at_zero
+
+
+class _WithConstant(LinearCurve):
+    """``1`` and the basis of a representation (the constant trainable)."""
+
+    def __init__(self, rep):
+        self.rep = rep
+
+    def features(self, u):
+        import torch
+
+        return torch.cat([torch.ones_like(u).unsqueeze(-1), self.rep.features(u)], dim=-1)
+
+    def feature_derivatives(self, u):
+        import torch
+
+        return torch.cat([torch.zeros_like(u).unsqueeze(-1), self.rep.feature_derivatives(u)], dim=-1)
+
+    def n_features(self) -> int:
+        return int(self.rep.n_features()) + 1
+
+    @property
+    def pinned_at_zero(self) -> bool:
+        return False
+
+    @property
+    def symmetry_name(self):
+        return None
+
+    def monomial_powers(self):
+        powers = self.rep.monomial_powers()
+        return None if powers is None else (0, *powers)
+
+
+def _representations(template, structure, degree):
+    from ..curves import LinearCurve, Polynomial
+
+    out = {}
+    for name in structure.curve_names:
+        rep = getattr(template, name, None)
+        if rep is None:
+            rep = Polynomial(degree=int(degree), basis="power")
+        if not isinstance(rep, LinearCurve):
+            raise ConfigError(f"{name}: hidden-state fits take curves linear in their parameters (Polynomial, Basis, "
+                              f"SparseLibrary), not {type(rep).__name__}; give {name}=Polynomial(degree=6)")
+        out[name] = rep
+    return out
+
+
+def _pinned(degree):
+    from ..curves import Polynomial
+
+    class Anchored(Polynomial):
+        """A polynomial without its constant: ``f(0) = 0`` (the argument is centred at 0)."""
+
+        @property
+        def pinned_at_zero(self) -> bool:
+            return True
+
+    return Anchored(degree=int(degree), basis="power")
+
+
+def _measured_layout(fm, cols, measured, dt):
+    """The ODE state from the data: measured positions and their finite-difference derivatives
+    (NaN for hidden entries)."""
+    n = len(cols["t"])
+    out = np.full((n, fm.n_state), np.nan)
+    for d, name in enumerate(fm.layout):
+        base, _, k = name.partition("__d")
+        if base in measured:
+            x = np.asarray(cols[measured[base]], dtype=float)
+            for _ in range(int(k or 0)):
+                x = np.gradient(x, dt)
+            out[:, d] = x
+    return out
+
+
+def _time_scale(cols, measured) -> float:
+    x = np.asarray(cols[next(iter(measured.values()))], dtype=float)
+    dt = float(np.median(np.diff(cols["t"])))
+    v = np.gradient(x, dt)
+    return float(np.std(x) / max(np.std(v), 1e-300)) if np.std(v) > 0 else dt * len(x) / 10
+
+
+def _initial(fm, data_state, analysis, B):
+    y0 = np.where(np.isfinite(data_state[0]), data_state[0], 0.0)
+    for h, v in analysis.fixed_initial.items():
+        y0[fm.layout.index(h)] = v
+    return np.repeat(y0[None], B, axis=0)
+
+
+def _start_shared(fm, structure, reps, analysis, scale, tau, rng, B, start):
+    """Linear curves of random slopes per start: magnitude from the signals' sizes and time scale,
+    the sign restoring where the curve's argument is its own equation's state."""
+    import sympy as sp
+
+    out = []
+    A_inv = np.asarray(fm.A_inv) if fm.A_inv is not None else np.ones((1, 1))
+    for name in structure.curve_names:
+        u = structure.argument_exprs[name]
+        arg_layout = fm.layout.index(str(u)) if str(u) in fm.layout else None
+        size_u = scale[arg_layout] if arg_layout is not None else float(np.mean(scale))
+        eqs = [e for e, eq in enumerate(structure.equations) if name in eq.curves]
+        e = eqs[0]
+        own = [j for j in range(len(fm.top)) if A_inv[j, e] != 0]
+        top = fm.top[own[0]] if own else fm.top[0]
+        base, _, k = top.partition("__d")
+        size_s = scale[fm.layout.index(base)]
+        slope = size_s / (size_u * tau ** int(k)) * 10.0 ** rng.uniform(-0.5, 0.5, B)
+        m = structure.equations[e].curves[name]
+        du = sp.diff(u, sp.Symbol(base, real=True)) if base in str(u) else 0
+        try:
+            sign = float(np.sign(float(sp.sympify(m)) * float(du))) if du != 0 else 0.0
+        except TypeError:
+            sign = 0.0
+        sign *= float(np.sign(A_inv[own[0], e])) if own else 1.0
+        signs = np.full(B, sign) if sign != 0 else rng.choice([-1.0, 1.0], B)
+        rep = reps[name]
+        pinned = bool(rep.pinned_at_zero)
+        center = np.zeros(B)
+        half = np.full(B, 2.0 * size_u)
+        c = _Curve(name, rep, structure.arguments[name], arg_layout, center, half, None)
+        c.theta = _project(c, np.zeros((B, 64)), half, lambda z, b: signs[b] * slope[b] * z, pinned)
+        c.domain = np.stack([-half, half], axis=1)
+        out.append(c)
+    return out
+
+
+def _project(curve, _unused, half, fn, pinned):
+    """Coefficients (per row) of ``fn(u, row)`` on the curve's basis over ``center +- half``."""
+    import torch
+
+    B = half.shape[0]
+    zs = np.linspace(-1.0, 1.0, 64)
+    phi = curve.param()._features(torch.as_tensor(zs)).numpy()
+    theta = np.zeros((B, phi.shape[1]))
+    for b in range(B):
+        u = curve.center[b] + half[b] * zs
+        theta[b] = np.linalg.lstsq(phi, fn(u, b), rcond=None)[0]
+    return theta
+
+
+def _renormalise(c, u, linear):
+    """The curve re-expressed on the range its argument visits now (``u``: ``(B, N)``); with
+    ``linear`` only its best straight line on that range is kept."""
+    import torch
+
+    u = np.where(np.isfinite(u), u, np.nan)
+    lo, hi = np.nanmin(u, axis=1), np.nanmax(u, axis=1)
+    bad = ~(np.isfinite(lo) & np.isfinite(hi) & (hi > lo))
+    lo, hi = np.where(bad, c.center - c.half, lo), np.where(bad, c.center + c.half, hi)
+    pinned = bool(c.rep.pinned_at_zero)
+    center = np.zeros_like(lo) if pinned else 0.5 * (lo + hi)
+    half = np.maximum(np.abs(lo), np.abs(hi)) if pinned else 0.5 * (hi - lo) * 1.05
+    zs = np.linspace(-1.0, 1.0, 64)
+    phi = c.param()._features(torch.as_tensor(zs)).numpy()
+    theta = np.zeros_like(c.theta)
+    for b in range(c.theta.shape[0]):
+        grid = np.linspace(lo[b], hi[b], 64)
+        f = c.values(np.broadcast_to(grid, (c.theta.shape[0], 64)))[b]
+        if linear:
+            f = np.polyval(np.polyfit(grid, f, 1), grid) if not pinned else grid * (grid @ f) / (grid @ grid)
+        z = (grid - center[b]) / half[b]
+        theta[b] = np.linalg.lstsq(phi if np.allclose(z, zs) else c.param()._features(torch.as_tensor(z)).numpy(),
+                                   f, rcond=None)[0]
+    out = _Curve(c.name, c.rep, c.argument, c.arg_layout, center, half, theta)
+    out.domain = np.stack([lo, hi], axis=1)
+    return out
+
+
+def _stage(fm, structure, shared, gain, traj, data_state, analysis, cols, dt, sub, hold, L, max_iter, continuity,
+           scale, deadline):
+    """One stage of multiple shooting with segments of ``L`` samples; returns the simulated states
+    ``(B, n, D)``, the gains and the data losses."""
+    import torch
+
+    from ..train import train
+
+    B, n, D = traj.shape
+    count = max(1, int(round((n - 1) / (L - 1))))
+    L = (n - 1) // count + 1
+    starts = np.arange(count) * (L - 1)
+    S = starts.size
+    T = lambda a: torch.as_tensor(np.asarray(a, dtype=float), dtype=torch.float64)  # noqa: E731
+    out_states = list(analysis.measured)
+    out_index = [fm.layout.index(s) for s in out_states]
+    meas = np.stack([data_state[starts[:, None] + np.arange(L)[None, :], d] for d in out_index], axis=-1)
+    free_gain = structure.free_gain and not analysis.gain_fixed
+    specs = [(c.name, c.param(), c.center, c.half, np.zeros(B)) for c in shared]
+    problem = build_problem(fm, structure, specs, free_gain, float(structure.gain), cols, dt, sub, hold, starts, L,
+                            out_index, meas, scale, continuity)
+    parts = [T(c.theta) for c in shared]
+    if free_gain:
+        parts.append(T(gain[:, None]))
+    y0 = traj[:, starts, :].copy()  # (B, S, D)
+    y0[:, 0, [fm.layout.index(s) for s in out_states]] = data_state[0, out_index]
+    for h, v in analysis.fixed_initial.items():
+        y0[:, 0, fm.layout.index(h)] = v
+    parts.append(T(y0.reshape(B, -1)))
+    theta0 = torch.nan_to_num(torch.cat(parts, dim=1), nan=0.0)
+    frozen = torch.zeros(problem.n_params, dtype=torch.bool)
+    for h in analysis.fixed_initial:
+        frozen[problem.n_shared + fm.layout.index(h)] = True
+    problem.frozen = frozen if bool(frozen.any()) else None
+    theta, _ = train(problem, theta0, adam_steps=0, adam_lr=0.0, lm_max_iter=int(max_iter), lm_tol=1e-6,
+                     stop_loss=0.0, lm_window=4, lm_deadline=deadline, lm_nielsen=True)
+    with torch.no_grad():
+        loss = problem.residuals(theta)[:, :problem.n_data].pow(2).sum(dim=1).numpy()
+    th = theta.double().numpy()
+    for i, c in enumerate(shared):
+        o = problem.block_offsets[i]
+        c.theta = th[:, o:o + c.theta.shape[1]].copy()
+    if free_gain:
+        gain = th[:, problem.gain_index].copy()
+    new_traj = simulate_states(fm, shared, gain, th[:, problem.n_shared:problem.n_shared + D], cols, dt, sub, hold,
+                               segments=(th[:, problem.n_shared:].reshape(B, S, D), starts, L))
+    return new_traj, gain, np.where(np.isfinite(loss), loss, np.inf)

@@ -1,0 +1,196 @@
+"""The fitted state-space model with hidden states: its curves, free runs and initial states.
+
+:func:`build_problem` lays a record out as the multiple-shooting problem of output error
+(:class:`~._shooting.ShootingProblem`) for a state-space template; :func:`simulate_states` runs it
+forward; :class:`StateSpaceModel` is what :func:`~._hidden.fit_state_space` returns.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .._errors import DataError
+
+__all__ = ["StateSpaceModel", "build_problem", "record_table", "simulate_states"]
+
+
+def record_table(record, measured: dict, forces) -> tuple[dict, float]:
+    """The columns a state-space fit reads (``t``, the measured columns, the forcings) and the
+    sample step; DataError naming a missing column or non-uniform sampling."""
+    from ..data import MultiTrajectory, Trajectory
+
+    if isinstance(record, Trajectory):
+        cols = {"t": record.t, "x": record.x, "F": record.F}
+    elif isinstance(record, MultiTrajectory):
+        cols = {"t": record.t, **record.states, **record.forces}
+    else:
+        raise DataError(f"expected a Trajectory or MultiTrajectory, got {type(record).__name__}")
+    cols = {k: np.asarray(v, dtype=float) for k, v in cols.items()}
+    have = ", ".join(cols)
+    for state, column in measured.items():
+        if column not in cols or column in ("t", *forces):
+            raise DataError(f"measured maps {state} to the column {column!r}, which the record lacks as a state; "
+                            f"its columns are {have}: give e.g. measured={{'{state}': '{next(iter(cols.keys() - {'t'}), 'x')}'}}")
+    for f in forces:
+        if f not in cols:
+            raise DataError(f"the template's forcing {f} is not a column of the record ({have}); rename the forcing "
+                            "in the equation or give that column")
+    steps = np.diff(cols["t"])
+    dt = float(np.median(steps))
+    if not dt > 0 or float(np.max(np.abs(steps - dt))) > 1e-3 * dt:
+        raise DataError("a hidden-state fit needs uniform sampling (the free run is driven by the sampled input); "
+                        "resample the record onto a uniform grid")
+    return cols, dt
+
+
+def build_problem(fm, structure, curves, free_gain: bool, gain: float, cols: dict, dt: float, sub: int, hold: str,
+                  starts, L: int, out_index, meas, scale, continuity: float):
+    """The shooting problem of ``curves`` (list of ``(name, parametrisation, center (B,), half (B,),
+    shift (B,))``) on segments ``starts`` of ``L`` samples, fitting ``meas`` ``(S, L, O)``."""
+    import torch
+
+    from ..data import stage_inputs
+    from ..objectives import CurveBlock, ShootingProblem
+
+    dtype = torch.float64
+    T = lambda a: torch.as_tensor(np.asarray(a, dtype=float), dtype=dtype)  # noqa: E731
+    blocks = [CurveBlock(name, param, T(np.asarray(c)[:, None]), T(np.asarray(h)[:, None]),
+                         T(np.ones((len(c), 1))), T(np.asarray(s)[:, None])) for name, param, c, h, s in curves]
+    idx = starts[None, :] * sub + np.arange((L - 1) * sub)[:, None]
+    inputs = {}
+    for f in structure.forces:
+        ua, um, ub = stage_inputs(np.asarray(cols[f], dtype=float), sub, hold)
+        inputs[f] = tuple(T(a[idx]) for a in (ua, um, ub))
+    t = np.asarray(cols["t"], dtype=float)
+    frac = np.arange((L - 1) * sub) / sub
+    tt = t[starts[None, :] + np.floor(frac).astype(int)[:, None]] + (frac - np.floor(frac))[:, None] * dt
+    times = tuple(T(tt + c * dt / sub) for c in (0.0, 0.5, 1.0))
+    return ShootingProblem(fm, blocks, [], [], free_gain, float(gain), inputs, times, T(meas), list(out_index),
+                           T(scale), dt, sub, continuity, torch.as_tensor(np.diff(starts) == L - 1, dtype=torch.bool),
+                           weight_decay=1e-10)
+
+
+def simulate_states(fm, curves, gain, y0, cols, dt, sub, hold, segments=None) -> np.ndarray:
+    """Every ODE state ``(B, n, D)``: one free run of the record from ``y0`` ``(B, D)``, or with
+    ``segments = (y0 (B, S, D), starts, L)`` each segment from its own initial state."""
+    import torch
+
+    n = len(cols["t"])
+    D = fm.n_state
+    if segments is None:
+        ys, starts, L = np.asarray(y0, dtype=float)[:, None, :], np.array([0]), n
+    else:
+        ys, starts, L = segments
+    B, S = ys.shape[0], starts.size
+    specs = [(c.name, c.param(), c.center, c.half, getattr(c, "shift", np.zeros(B))) for c in curves]
+    free = np.ndim(gain) > 0
+    problem = build_problem(fm, fm.template, specs, free, float(np.mean(gain)) if not free else 1.0, cols, dt, sub,
+                            hold, starts, L, list(range(D)), np.zeros((S, L, D)), np.ones(D), 0.0)
+    parts = [torch.as_tensor(c.theta, dtype=torch.float64) for c in curves]
+    if free:
+        parts.append(torch.as_tensor(np.asarray(gain, dtype=float)[:, None]))
+    parts.append(torch.as_tensor(ys.reshape(B, -1), dtype=torch.float64))
+    with torch.no_grad():
+        X, _, _ = problem.simulate(torch.cat(parts, dim=1), need_jac=False)  # (B, S, L, D)
+    X = X.double().numpy()
+    out = np.full((B, n, D), np.nan)
+    for s, a in enumerate(starts):
+        out[:, a:a + L] = X[:, s]
+    return out
+
+
+class _Simulated:
+    """A fitted curve in the form :func:`simulate_states` takes."""
+
+    def __init__(self, curve, B: int = 1):
+        from ..curves import LinearParametrisation
+
+        self.name = curve.name
+        self._param = LinearParametrisation(curve.representation)
+        self.center, self.half = np.full(B, curve.center), np.full(B, curve.half_width)
+        self.shift = np.full(B, curve.constant + curve.shift)
+        self.theta = np.repeat(curve.coefficients[None], B, axis=0)
+
+    def param(self):
+        return self._param
+
+
+class StateSpaceModel:
+    """A state-space template fitted with hidden states (see :func:`~charcurves.fitting.fit_state_space`).
+
+    Attributes
+    ----------
+    curves : dict
+        Curve name -> fitted curve (callable on its argument), in the gauge ``info["gauge_conditions"]``.
+    gain : float
+    initial_state : dict
+        The ODE state at the record's first sample (hidden states included), as estimated.
+    info : dict
+        ``start`` (which start ran), ``stages`` (segment length and loss per stage), ``hidden``,
+        ``gauge_freedoms``, ``gauge_conditions``, ``free_run_rmse``, ``seconds``.
+
+    Examples
+    --------
+    >>> from charcurves.fitting import fit_state_space
+    >>> from charcurves.systems import TwoTank
+    >>> from charcurves.templates import StateSpace
+    >>> record = TwoTank().simulate(n_points=81, t_end=160.0, seed=0)
+    >>> template = StateSpace("x1' = g*F - f1(x1); x2' = f1(x1) - f2(x2)", measured={"x2": "x"})
+    >>> model = fit_state_space(template, record, n_starts=1, degree=2, schedule=(16,), max_iter=5, substeps=1)
+    >>> sorted(model.simulate(record)), model.initial_state["x1"]
+    (['x1', 'x2'], 0.0)
+    """
+
+    def __init__(self, template, structure, curves: dict, gain: float, initial_state: dict, info: dict):
+        self.template, self.structure = template, structure
+        self.curves, self.gain = curves, float(gain)
+        self.initial_state, self.info = dict(initial_state), dict(info)
+
+    def _forward(self):
+        from ..templates import ForwardModel
+
+        return ForwardModel(self.structure)
+
+    def simulate(self, record, initial: dict | None = None) -> dict[str, np.ndarray]:
+        """One free run over ``record``'s input from ``initial`` (default: the measured states' first
+        samples, their derivatives by finite differences, hidden states as fitted): every state."""
+        fm = self._forward()
+        cols, dt = record_table(record, self.info["measured"], self.structure.forces)
+        y0 = self.start_state(record) if initial is None else np.array([initial[n] for n in fm.layout], dtype=float)
+        free = self.structure.free_gain
+        gain = np.array([self.gain]) if free else self.gain
+        X = simulate_states(fm, [_Simulated(c) for c in self.curves.values()], gain, y0[None], cols, dt,
+                            int(self.info["substeps"]), self.info["hold"])[0]
+        return {name: X[:, d] for d, name in enumerate(fm.layout)}
+
+    def start_state(self, record) -> np.ndarray:
+        fm = self._forward()
+        cols, dt = record_table(record, self.info["measured"], self.structure.forces)
+        y0 = np.array([self.initial_state[n] for n in fm.layout], dtype=float)
+        for d, name in enumerate(fm.layout):
+            base, _, k = name.partition("__d")
+            if base in self.info["measured"]:
+                x = np.asarray(cols[self.info["measured"][base]], dtype=float)[:8]
+                y0[d] = np.polyval(np.polyder(np.polyfit(np.arange(8) * dt, x, 2), int(k or 0)), 0.0)
+        return y0
+
+    def free_run_rmse(self, record, initial: dict | None = None) -> dict[str, float]:
+        """RMSE of one free run against each measured column of ``record`` (inf when it diverges)."""
+        cols, _ = record_table(record, self.info["measured"], self.structure.forces)
+        sim = self.simulate(record, initial)
+        out = {}
+        for state, column in self.info["measured"].items():
+            err = sim[state] - cols[column]
+            out[state] = float(np.sqrt(np.mean(err ** 2))) if np.isfinite(err).all() else float("inf")
+        return out
+
+    def summary(self) -> dict[str, Any]:
+        """What ``result.json`` holds: the template, gain, initial state, gauges and the fit's report."""
+        return {"equation": getattr(self.template, "written", self.structure.text), "gain": self.gain, "initial_state": self.initial_state,
+                "curves": {n: {"argument": c.argument, "domain": list(c.domain)} for n, c in self.curves.items()},
+                **{k: v for k, v in self.info.items()}}
+
+    def __repr__(self) -> str:
+        return f"StateSpaceModel({self.structure.text!r}, hidden={self.info.get('hidden')})"
