@@ -61,7 +61,8 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                    help=f"samples (default 1000; at most {MAX_SIMULATE_POINTS:,}, a CSV of about 0.25 GB)")
 
     f = sub.add_parser("fit", help="identify the characteristic curves of a record")
-    f.add_argument("csv", help="CSV file with a header row")
+    f.add_argument("csv", nargs="+", help="CSV file with a header row (several: one joint fit, the curves shared, "
+                                          "each record's own initial state; result.json 'records')")
     f.add_argument("--out", required=True, help="output directory")
     f.add_argument("--family", default="separable",
                    help="separable (default), first-order, position-damping or two-dof (CSV t,x1,x2,F1,F2)")

@@ -50,6 +50,7 @@ from ._output_error import refine_output_error as refine_output_error
 from ._oe_report import summary_lines as summary_lines
 from ._pipeline import fit_with_post_sr as fit_with_post_sr
 from ._pipeline import raw_fit as raw_fit
+from ._records import RecordSet as RecordSet
 from ._plots import figure_png as figure_png
 from ._plots import plot_curves as plot_curves
 from ._plots import plot_model as plot_model
