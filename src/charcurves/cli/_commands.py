@@ -92,7 +92,7 @@ def cmd_validate(a) -> int:
 
     out = validate_cli(a.model, a.csv, rows=a.rows, time_col=time_column(a.time_col), x_col=a.x_col,
                        force_col=a.force_col, sample_rate=a.sample_rate, hold=a.hold, substeps=a.substeps,
-                       out_dir=a.out)
+                       out_dir=a.out, init_window=a.init_window)
     lines = list(out[0] if isinstance(out, tuple) else out)
     for line in lines:
         say(line)
