@@ -134,14 +134,17 @@ class RecordSet:
 
         parts = []
         estimated = False
+        plain = {n: "none" for n in (sym or {})}  # a parity prior needs the union on both sides of 0, not each record
         for k, rec in enumerate(self.records):
             try:
-                p, e = prepare_record(rec, structure, sym, diff, what, without_prior)
+                p, e = prepare_record(rec, structure, plain, diff, what, without_prior)
             except (ConfigError, DataError) as exc:
                 raise type(exc)(f"record {k} ({rec.name}): {exc}") from None
             parts.append(p)
             estimated = estimated or bool(e)
-        return _join(parts, self.offsets, self.name), estimated
+        joined, _ = prepare_record(_join(parts, self.offsets, self.name), structure, sym, "given", what,
+                                   without_prior)  # the checks of the whole: the priors on the union of the ranges
+        return joined, estimated
 
 
 def prepare_any(record, structure, sym, diff, what: str, without_prior=None):
