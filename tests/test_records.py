@@ -145,3 +145,31 @@ def test_cli_refuses_records_with_different_columns_in_one_line(tmp_path, capsys
     err = capsys.readouterr().err
     assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert err.startswith("charcurves: error: record 1 (c) has the columns x, F, v, a but record 0 (a) has x, F")
+
+
+def test_three_amplitudes_joint_fit_covers_the_union_and_beats_each_record_outside_its_range():
+    # the Duffing target of benchmarks/bench_records.py at small size: forcing 0.5x, 1x, 1.5x of A = 0.5
+    # (the 0.5x record stays in one well, x > 0), cubic poly-cc curves by equation error
+    truth = get_system("duffing").true_curves()
+    recs = [cc.corrupt(get_system("duffing", A=A).simulate(t_end=40.0, n_points=500), 30, seed=k)
+            for k, A in enumerate((0.25, 0.5, 0.75))]
+    kw = dict(method="poly-cc", options={"degree": 3})
+    joint = cc.CharacteristicCurves(**kw).fit(recs).model_
+    pooled = cc.CharacteristicCurves(**PARAM).fit(recs).model_
+    alone = [cc.CharacteristicCurves(**kw).fit(r).model_ for r in recs]
+
+    def rmse(curve, name, z):
+        return float(np.sqrt(np.mean((curve(z) - truth[name](z)) ** 2)))
+
+    for name in ("f1", "f2"):
+        lo = min(m.curves[name].domain[0] for m in alone)
+        hi = max(m.curves[name].domain[1] for m in alone)
+        assert joint.curves[name].domain == pytest.approx((lo, hi), abs=1e-12)
+        z = np.linspace(lo, hi, 400)
+        for k in (0, 1):  # the records whose range is not the union's
+            a, b = alone[k].curves[name].domain
+            out = z[(z < a) | (z > b)]
+            assert out.size > 50
+            assert rmse(joint.curves[name], name, out) < 0.5 * rmse(alone[k].curves[name], name, out)
+    z = np.linspace(*joint.curves["f2"].domain, 400)
+    assert rmse(joint.curves["f2"], "f2", z) < 1.2 * rmse(pooled.curves["f2"], "f2", z)
