@@ -8,9 +8,9 @@ BenchmarkData                   what a loader returns
 BENCHMARKS                      name -> loader (the hook for further benchmarks, e.g. Bouc-Wen)
 """
 
-from ._base import BENCHMARKS as BENCHMARKS
 from ._base import BenchmarkData as BenchmarkData
-from ._base import get_benchmark as get_benchmark
+from ._registry import BENCHMARKS as BENCHMARKS
+from ._registry import get_benchmark as get_benchmark
 from ._silverbox import silverbox as silverbox
 
 __all__ = ["BENCHMARKS", "BenchmarkData", "get_benchmark", "silverbox"]

@@ -1,15 +1,13 @@
-"""What a benchmark loader returns, and the registry of loaders."""
+"""What a benchmark loader returns, and where its files are."""
 
 from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Callable
 
-from .._errors import ConfigError
 from ..data import Trajectory
 
-__all__ = ["BenchmarkData", "BENCHMARKS", "get_benchmark", "data_folder"]
+__all__ = ["BenchmarkData", "data_folder"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,23 +47,3 @@ def data_folder(data_dir, benchmark: str) -> str | None:
     if folder is None:
         return None
     return os.path.join(os.fspath(folder), benchmark)
-
-
-def _loaders() -> dict[str, Callable]:
-    from ._silverbox import silverbox
-
-    # further benchmarks add their loader here (e.g. "bouc-wen": a simulation of its published definition)
-    return {"silverbox": silverbox}
-
-
-#: the benchmark names ``charcurves benchmark --real`` accepts
-BENCHMARKS = ("silverbox",)
-
-
-def get_benchmark(name: str, data_dir=None) -> BenchmarkData:
-    """The benchmark ``name`` (one of :data:`BENCHMARKS`) loaded from ``data_dir``."""
-    loaders = _loaders()
-    key = str(name).strip().lower()
-    if key not in loaders:
-        raise ConfigError(f"unknown real benchmark {name!r}; choose one of {', '.join(BENCHMARKS)}")
-    return loaders[key](data_dir=data_dir)

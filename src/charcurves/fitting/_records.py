@@ -156,12 +156,10 @@ def prepare_any(record, structure, sym, diff, what: str, without_prior=None):
     return prepare_record(record, structure, sym, diff, what, without_prior)
 
 
-def common_step(records, tol: float = 1e-3) -> float:
-    """The one uniform sample step of every record (output error integrates all segments with one
-    step; DataError naming the steps otherwise)."""
-    from ._output_error import _uniform_step
-
-    steps = [_uniform_step(r) for r in records]
+def common_step(records, uniform_step, tol: float = 1e-3) -> float:
+    """The one uniform sample step of every record (``uniform_step(record)`` each; output error
+    integrates all segments with one step; DataError naming the steps otherwise)."""
+    steps = [uniform_step(r) for r in records]
     if max(steps) - min(steps) > tol * min(steps):
         raise DataError("output error of several records needs one sampling step, got "
                         f"{', '.join(f'{s:.6g}' for s in steps)}; resample the records to one rate, or use "
@@ -191,9 +189,10 @@ def record_segments(bounds, L: int, max_segments: int, segments):
     return L, np.asarray(starts, dtype=int), np.asarray(contiguous, dtype=bool)
 
 
-def record_report(model, record_set: RecordSet, prepared, mask) -> list[dict]:
+def record_report(model, record_set: RecordSet, prepared, mask, free_run_rmse) -> list[dict]:
     """Per record: samples, step, equation-error loss (mean squared residual over its fitted rows) and
-    the free-run RMSE of x from the initial state output error estimated for it (separable family)."""
+    the free-run RMSE of x from the initial state output error estimated for it (separable family;
+    ``free_run_rmse(model, record, columns, y0, hold, substeps)`` runs it)."""
     out = []
     r = np.asarray(model.force_residual(prepared), dtype=float)
     r = r.reshape(r.shape[0], -1)
@@ -207,7 +206,7 @@ def record_report(model, record_set: RecordSet, prepared, mask) -> list[dict]:
                                  "range": _ranges(rec),
                                  "loss_equation_error": float(np.mean(rk**2)) if rk.size else None}
         entry["free_run_rmse"] = _free_run(model, rec, prepared.slice(slice(a, b)) if hasattr(prepared, "slice") else None,
-                                           None if y0s is None else y0s[k], oe)
+                                           None if y0s is None else y0s[k], oe, free_run_rmse)
         out.append(entry)
     return out
 
@@ -224,18 +223,17 @@ def _ranges(rec) -> dict:
     return {k: [float(np.min(v)), float(np.max(v))] for k, v in cols.items()}
 
 
-def _free_run(model, rec, prepared, y0, oe) -> float | None:
+def _free_run(model, rec, prepared, y0, oe, free_run_rmse) -> float | None:
     """Free-run RMSE of x over one record (separable family): from output error's initial state of
     the record, else from the prepared record's first state (its estimated or given x, x')."""
     from ..data import Trajectory
-    from ._output_error import _free_run_rmse
 
     if model.template.is_general or not isinstance(rec, Trajectory):
         return None
     if y0 is None:
         y0 = [float(prepared.x[0]), float(prepared.v[0])]
     try:
-        rmse = _free_run_rmse(model, rec, {"x": np.asarray(rec.x, dtype=float)}, y0, oe.get("hold", "linear"),
+        rmse = free_run_rmse(model, rec, {"x": np.asarray(rec.x, dtype=float)}, y0, oe.get("hold", "linear"),
                               int(oe.get("substeps", 4)))
     except (ConfigError, DataError):
         return None
