@@ -41,7 +41,8 @@ def run_real_benchmark(name: str, out_dir, *, data_dir=None, seed: int = 0, thre
     scale = {"mV": 1e3}.get(data.unit, 1.0)
     rows = {}
     for test_name, rec in tests.items():
-        rmse, res = free_run_error(model, rec, hold=hold, substeps=substeps, init_window=data.init_window)
+        rmse, res = free_run_error(model, rec, hold=hold, substeps=substeps, init_window=data.init_window,
+                                   time_budget=1800.0)
         rows[test_name] = {"rmse": rmse, f"rmse_{data.unit}": rmse * scale, "status": res.status,
                            "n_samples": rec.n_samples, "counted_samples": rec.n_samples - data.init_window,
                            "std_x": float(np.std(np.asarray(rec.x)[data.init_window:]))}

@@ -24,7 +24,7 @@ from ._objectives import OutputError
 from ._problem import RELEVANCE_LABEL
 from ._records import common_step, record_segments
 
-__all__ = ["free_run_diagnostics", "free_run_rmse", "output_error_fit", "refine_output_error", "choose_substeps",
+__all__ = ["free_run_diagnostics", "output_error_fit", "refine_output_error", "choose_substeps",
            "choose_segment_length", "slow_template"]
 
 
@@ -342,12 +342,6 @@ def _free_run_x(model, record, y0, hold, substeps):
     ua, um, ub = stage_inputs(np.asarray(record.F, dtype=float), substeps, hold)
     x, _, status = rk4_sampled(accel, ua, um, ub, float(y0[0]), float(y0[1]), _uniform_step(record), substeps)
     return np.asarray(x, dtype=float), status
-
-
-def free_run_rmse(model, record, meas_cols, y0, hold, substeps):
-    """RMSE of one free run of the whole record from ``y0`` (separable family; None for other
-    templates or without measured positions ``meas_cols``)."""
-    return _free_run_rmse(model, record, meas_cols, y0, hold, substeps)
 
 
 def _free_run_rmse(model, record, meas_cols, y0, hold, substeps):

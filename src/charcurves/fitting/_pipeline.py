@@ -220,9 +220,7 @@ def _finish(est, ctx: dict, records: list, refined: tuple[list, bool] | None = N
         _check(est, ctx, m, records[k], k)
         if isinstance(records[k], RecordSet):  # several records in one fit: each one's losses
             per_record_residual_tests(m, records[k], prepared[k], ctx["masks"][k])
-            from ._output_error import free_run_rmse
-
-            m.info["records"] = record_report(m, records[k], prepared[k], ctx["masks"][k], free_run_rmse)
+            m.info["records"] = record_report(m, records[k], prepared[k], ctx["masks"][k])
     return models
 
 
