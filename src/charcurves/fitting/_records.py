@@ -191,8 +191,8 @@ def record_segments(bounds, L: int, max_segments: int, segments):
 
 def record_report(model, record_set: RecordSet, prepared, mask) -> list[dict]:
     """Per record: samples, step, equation-error loss (mean squared residual over its fitted rows) and
-    the free-run RMSE of x from the initial state output error estimated for it, else from the
-    prepared record's first state (separable family; the records of one step run as one batch)."""
+    the free-run RMSE of x from the initial state output error estimated for it (separable family,
+    after output error; the records of one step run as one batch; None otherwise)."""
     out = []
     r = np.asarray(model.force_residual(prepared), dtype=float)
     r = r.reshape(r.shape[0], -1)
@@ -201,7 +201,9 @@ def record_report(model, record_set: RecordSet, prepared, mask) -> list[dict]:
     for k, (rec, (a, b)) in enumerate(zip(record_set.records, record_set.bounds)):
         rk = r[a:b][mask[a:b]]
         out.append({"name": rec.name, "n_samples": int(b - a), "dt": float(rec.dt), "range": _ranges(rec),
-                    "loss_equation_error": float(np.mean(rk**2)) if rk.size else None, "free_run_rmse": free[k]})
+                    "loss_equation_error": float(np.mean(rk**2)) if rk.size else None, "free_run_rmse": free[k],
+                    **({} if free[k] is not None else {"free_run": "not run (no output error): see charcurves "
+                                                                    "validate"})})
     return out
 
 
@@ -229,9 +231,10 @@ def _free_runs(model, record_set: RecordSet, prepared) -> list:
     if model.template.is_general or not isinstance(record_set.records[0], Trajectory):
         return [None] * K
     oe = model.info.get("output_error") or {}
+    y0s = oe.get("record_initial_states")
+    if y0s is None:  # equation error alone runs no simulation (as for one record): validate gives the free run
+        return [None] * K
     hold, substeps = oe.get("hold", "linear"), int(oe.get("substeps", 4))
-    y0s = oe.get("record_initial_states") or [[float(prepared.x[a]), float(prepared.v[a])]
-                                              for a, _ in record_set.bounds]
     f1, f2 = _table(model.curves["f1"]), _table(model.curves["f2"])
     g, b = float(model.gain), float(model.offset)
 
@@ -240,8 +243,12 @@ def _free_runs(model, record_set: RecordSet, prepared) -> list:
 
     out: list = [None] * K
     steps = [float(np.median(np.diff(np.asarray(r.t, dtype=float)))) for r in record_set.records]
-    for dt in sorted(set(steps)):
-        ks = [k for k in range(K) if steps[k] == dt]
+    groups: list[list[int]] = []
+    for k in range(K):  # records of one step (to round-off) run as one batch
+        same = [grp for grp in groups if abs(steps[grp[0]] - steps[k]) <= 1e-9 * steps[k]]
+        same[0].append(k) if same else groups.append([k])
+    for ks in groups:
+        dt = steps[ks[0]]
         n_max = max(record_set.records[k].n_samples for k in ks)
         stages = []
         for k in ks:
