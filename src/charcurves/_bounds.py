@@ -99,6 +99,8 @@ BOUNDS: dict[str, Bound] = dict([
        ("fit --sample-rate", "validate --sample-rate"), "100"),
     _b("n_points", "int", 2, 2_000_000, "2 million samples are a CSV of about 0.25 GB", ("simulate --n-points",),
        "1000"),
+    _b("init_window", "int", 2, 2_000_000, "samples of a span that only fit its initial state; the RMSE is "
+       "counted on the rest (at least 16 samples)", ("validate --init-window",), "100"),
     _b("t_end", "float", 1e-3, 1e5, "time units; LSODA takes about 1 s per 1000", ("simulate --t-end",), "40"),
 ])
 

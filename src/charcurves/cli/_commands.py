@@ -92,7 +92,7 @@ def cmd_validate(a) -> int:
 
     out = validate_cli(a.model, a.csv, rows=a.rows, time_col=time_column(a.time_col), x_col=a.x_col,
                        force_col=a.force_col, sample_rate=a.sample_rate, hold=a.hold, substeps=a.substeps,
-                       out_dir=a.out)
+                       out_dir=a.out, init_window=a.init_window)
     lines = list(out[0] if isinstance(out, tuple) else out)
     for line in lines:
         say(line)
@@ -155,10 +155,28 @@ def ray_address(a) -> str | None:
     return address
 
 
+def _real_benchmark(a) -> int:
+    """``benchmark --real NAME``: the real benchmark's fit and test RMSE (charcurves.experiments.run_real_benchmark)."""
+    from ..experiments import run_real_benchmark
+
+    doc = run_real_benchmark(a.real, a.out, data_dir=a.data_dir, seed=a.seed, threads=1, quiet=a.quiet)
+    say(f"benchmark {doc['benchmark']}: {doc['method']} on {doc['template']} ({doc['estimation_samples']} samples, "
+        f"{doc['fit_seconds']:.1f} s); free-run RMSE after the {doc['init_window']}-sample initialisation window:",
+        a.quiet)
+    for name, r in doc["tests"].items():
+        say(f"  {name}: {r['rmse_' + doc['unit']]:.4g} {doc['unit']} ({r['status']})", a.quiet)
+    say(f"wrote {os.path.join(a.out, 'real.json')}, real.md, model/", a.quiet)
+    return 0
+
+
 def cmd_benchmark(a) -> int:
     from ..experiments import BENCHMARK_SECTIONS, BENCHMARK_SYSTEMS as SYSTEMS, parse_name_list, parse_snr_list, run_benchmark
     from ..fitting import METHODS
 
+    if a.real is not None:
+        return _real_benchmark(a)
+    if a.data_dir is not None:
+        raise UsageError("--data-dir goes with --real (a real benchmark's records); drop it or add --real silverbox")
     if a.report_only:
         given = [flag for flag, v in (("--methods", a.methods), ("--snr", a.snr), ("--realizations", a.realizations),
                                       ("--full", a.full or None), ("--forward-cases", a.forward_cases),

@@ -135,6 +135,9 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
     result["interrupted"] = bool(model.info.get("interrupted", False))
     if source:
         result["source"] = source
+    if "records" in model.info:  # several records in one fit: each one's losses and free-run RMSE
+        result["records"] = [dict(r, source=s) for r, s in zip(model.info["records"], source)] \
+            if isinstance(source, list) else list(model.info["records"])
     result["warnings"] = [str(w) for w in warnings] + [str(w) for w in model.info.get("warnings", [])]
     check = model.info.get("self_check")
     if check:
@@ -198,6 +201,11 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
         from ..fitting import summary_lines
 
         lines += summary_lines(model)
+    for k, r in enumerate(result.get("records", [])):
+        rmse = r.get("free_run_rmse")
+        lines.append(f"  record {k} ({r.get('source', r['name'])}): {r['n_samples']} samples, step {r['dt']:.4g}, "
+                     f"equation-error loss {r['loss_equation_error']:.4g}"
+                     + ("" if rmse is None else f", free-run RMSE x {rmse:.4g}"))
     lines += _settings_lines(model)
     lines += _self_check_lines(model)
     lines += [f"warning: {w}" for w in result["warnings"]]
@@ -253,13 +261,25 @@ def cmd_fit(a) -> int:
     from ..io import FOLDER_LOCK_NAME
     from ._common import refuse_inputs_among_outputs
 
-    refuse_inputs_among_outputs({"record": a.csv}, [os.path.join(a.out, name) for name in FIT_OUTPUTS + (FOLDER_LOCK_NAME,)])
+    paths = [a.csv] if isinstance(a.csv, str) else list(a.csv)
+    outputs = [os.path.join(a.out, name) for name in FIT_OUTPUTS + (FOLDER_LOCK_NAME,)]
+    for path in paths:
+        refuse_inputs_among_outputs({"record": path}, outputs)
     if getattr(a, "measured", None):
+        if len(paths) > 1:
+            raise UsageError("--measured (hidden states) takes one record; fit one CSV file")
         from ._hidden import cmd_fit_hidden
 
+        a.csv = paths[0]
         return cmd_fit_hidden(a)
-    traj = read_record(a.csv, family=a.family, equation=a.equation, time_col=time_column(a.time_col), x_col=a.x_col,
-                       force_col=a.force_col, sample_rate=a.sample_rate, rows=a.rows)
+    if len(paths) > 1 and a.bands is not None:
+        raise UsageError("--bands takes one record; fit several records without --bands")
+    records = [read_record(path, family=a.family, equation=a.equation, time_col=time_column(a.time_col), x_col=a.x_col,
+                           force_col=a.force_col, sample_rate=a.sample_rate, rows=a.rows) for path in paths]
+    traj = records[0] if len(records) == 1 else records
+    quality = records[0].quality_warnings() if len(records) == 1 else \
+        [f"{path}: {w}" for path, r in zip(paths, records) for w in r.quality_warnings()]
+    source = source_path(paths[0], a.out) if len(paths) == 1 else [source_path(p, a.out) for p in paths]
     truth = None
     if a.truth:
         from ..systems import get_system
@@ -274,9 +294,9 @@ def cmd_fit(a) -> int:
                           sr_options=sr_options, gauge=a.gauge, gain_on=a.noisy_side, preset=a.preset, seed=a.seed,
                           derivatives=a.derivatives, jump=a.jump, basis=a.basis, keep_sticking=a.keep_sticking,
                           truth=truth, threads=a.threads, device=a.device, figure=not a.no_figure, quiet=a.quiet,
-                          source=source_path(a.csv, a.out), refine=a.refine, refine_options=refine_options,
+                          source=source, refine=a.refine, refine_options=refine_options,
                           bands=a.bands, bands_kind=a.bands_kind, bands_level=a.bands_level, equation=a.equation,
-                          warnings=traj.quality_warnings(), objective=a.objective, report=a.report, snr=a.snr)
+                          warnings=quality, objective=a.objective, report=a.report, snr=a.snr)
     return interrupted_exit(model, a.out)
 
 

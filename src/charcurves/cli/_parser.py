@@ -61,7 +61,8 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                    help=f"samples (default 1000; at most {MAX_SIMULATE_POINTS:,}, a CSV of about 0.25 GB)")
 
     f = sub.add_parser("fit", help="identify the characteristic curves of a record")
-    f.add_argument("csv", help="CSV file with a header row")
+    f.add_argument("csv", nargs="+", help="CSV file with a header row (several: one joint fit, the curves shared, "
+                                          "each record's own initial state; result.json 'records')")
     f.add_argument("--out", required=True, help="output directory")
     f.add_argument("--family", default="separable",
                    help="separable (default), first-order, position-damping or two-dof (CSV t,x1,x2,F1,F2)")
@@ -168,6 +169,10 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                                                 "else linear)")
     v.add_argument("--substeps", type=cli_number("substeps"), default=None,
                    help=ranged("substeps", "RK4 steps per sample (default: as refined, else 4)"))
+    v.add_argument("--init-window", type=cli_number("init_window"), default=None,
+                   help="samples at the start of each span that only fit the initial state (velocity included); "
+                        "the RMSE is counted after them, as the nonlinear benchmarks do (default: the state fitted "
+                        "to the first 128 samples, the RMSE over all)")
     v.add_argument("--out", default=None, help="directory for validation.json and validation.png")
 
     d = sub.add_parser("demo", help="simulate Duffing at 20 dB, fit NN-CC+sym, write results")
@@ -230,6 +235,12 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     b.add_argument("--report-only", action="store_true",
                    help="run nothing: rebuild report.md/.html and figures/ from the files in --out (results.csv, "
                         "run.json, extras.json, appendix_f.csv)")
+    b.add_argument("--real", default=None,
+                   help="a real benchmark instead of the paper's study: silverbox (fits the estimation record, "
+                        "free-runs the official tests after their initialisation window; real.json, real.md)")
+    b.add_argument("--data-dir", default=None,
+                   help="with --real: the folder that holds <benchmark>/ (e.g. silverbox/SNLS80mV.csv); default "
+                        "$CHARCURVES_DATA_DIR, else the nonlinear-benchmarks package when installed")
     b.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     return p
 

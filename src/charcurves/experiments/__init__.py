@@ -12,6 +12,7 @@ build_report(out_dir)                      rebuild the report from results.csv, 
 docs_tables(results_root)                  the docs' headline tables from the committed results folders
 fill_table_markers(text, tables)           write them between a page's <!-- table:NAME --> markers
 ray_ensemble_fitter(address)               select_family's ensemble fits as Ray tasks on a cluster
+run_real_benchmark(name, out_dir, ...)     a real benchmark (charcurves.datasets): fit, test RMSE after the window
 
 Examples
 --------
@@ -28,6 +29,7 @@ from ._benchmark import parse_name_list as parse_name_list
 from ._benchmark import parse_snr_list as parse_snr_list
 from ._benchmark import run_benchmark as run_benchmark
 from ._docs_tables import docs_tables as docs_tables
+from ._real import run_real_benchmark as run_real_benchmark
 from ._docs_tables import fill_table_markers as fill_table_markers
 from ._report_inputs import build_report as build_report
 from ._remote import ray_ensemble_fitter as ray_ensemble_fitter
@@ -67,6 +69,7 @@ __all__ = [
     "BenchmarkResult",
     "build_report",
     "ray_ensemble_fitter",
+    "run_real_benchmark",
     "CaseResult",
     "EXECUTORS",
     "ForwardEvaluation",

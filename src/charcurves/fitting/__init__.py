@@ -52,6 +52,7 @@ from ..objectives import refine_output_error as refine_output_error
 from ..model import summary_lines as summary_lines
 from ._pipeline import fit_with_post_sr as fit_with_post_sr
 from ._pipeline import raw_fit as raw_fit
+from ._records import RecordSet as RecordSet
 from ..model import figure_png as figure_png
 from ..model import plot_curves as plot_curves
 from ..model import plot_model as plot_model

@@ -239,10 +239,10 @@ def fit_ensembles(estimator, records, n: int = 8, *, kind: str = "bootstrap",
 
 def _prepared(estimator, record):
     """The record with the derivatives the estimator's fit used (given ones, or estimated)."""
-    from ..templates import prepare_record
+    from ._records import prepare_any
 
     _, structure, sym, method = estimator.resolve()
-    return prepare_record(record, structure, sym, estimator.differentiator_value(), f"method {method}")[0]
+    return prepare_any(record, structure, sym, estimator.differentiator_value(), f"method {method}")[0]
 
 
 def _beyond_raw(estimator, records) -> bool:

@@ -163,7 +163,13 @@ class CharacteristicCurves:
 
     # ------------------------------------------------------------------ fitting
     def fit(self, traj) -> CharacteristicCurves:
-        """Fit one record; the result is ``self.model_``."""
+        """Fit one record, or a list of records together (curves, scalars and gain shared; initial
+        and segment states per record; ``model_.info["records"]``); the result is ``self.model_``."""
+        if isinstance(traj, (list, tuple)):
+            from ._records import as_record_set
+
+            group = as_record_set(traj)
+            traj = group if len(group) > 1 else group.records[0]
         self.model_ = self.fit_many([traj], seeds=[self.random_state])[0]
         return self
 

@@ -26,6 +26,7 @@ from ..objectives import output_error_fit, resolve_objective, runs_output_error
 from ._sticking import sticking_masks
 from ._self_check import derivative_noise, measured_state_noise, self_check
 from ._priors import name_prior_in_warnings, priors_record
+from ._records import RecordSet, per_record_residual_tests, record_report
 
 __all__ = ["run_pipeline", "raw_fit", "fit_with_post_sr", "check_device", "differentiator_used"]
 
@@ -74,7 +75,7 @@ def raw_fit(est, records, seeds=None):
 
 
 def _fit_stage(est, records: list, seeds):
-    from ..templates import prepare_record
+    from ._records import prepare_any
 
     tmpl, structure, sym, method = est.resolve()
     mode, oe_settings = resolve_objective(est.objective, est.refine, est.refine_options)
@@ -87,7 +88,7 @@ def _fit_stage(est, records: list, seeds):
     diff = est.differentiator_value()
     prepared, estimated = [], []
     for rec in records:
-        p, e = prepare_record(rec, structure, sym, diff, f"method {method}", est.without_prior)
+        p, e = prepare_any(rec, structure, sym, diff, f"method {method}", est.without_prior)
         prepared.append(p)
         estimated.append(e)
     if seeds is None:
@@ -218,6 +219,9 @@ def _finish(est, ctx: dict, records: list, refined: tuple[list, bool] | None = N
             "gauge": list(structure.anchors),
         }
         _check(est, ctx, m, records[k], k)
+        if isinstance(records[k], RecordSet):  # several records in one fit: each one's losses
+            per_record_residual_tests(m, records[k], prepared[k], ctx["masks"][k])
+            m.info["records"] = record_report(m, records[k], prepared[k], ctx["masks"][k])
     return models
 
 
@@ -241,12 +245,12 @@ def _harmonic_terms(model, layout) -> dict:
 def _check(est, ctx, model, raw, k: int) -> None:
     """The self-check of one model, with the state's noise carried through the estimated derivatives
     or, for measured derivative columns, through the curves."""
-    from ..templates import prepare_record
+    from ._records import prepare_any
 
     prepared, mask, estimated = ctx["prepared"][k], ctx["masks"][k], bool(ctx["estimated"][k])
     if estimated:
         def prepare(rec):
-            return prepare_record(rec, ctx["structure"], ctx["sym"], ctx["diff"], f"method {ctx['method']}",
+            return prepare_any(rec, ctx["structure"], ctx["sym"], ctx["diff"], f"method {ctx['method']}",
                                   est.without_prior)[0]
 
         noise = derivative_noise(model, raw, prepared, prepare, mask, seed=ctx["seeds"][k])

@@ -23,6 +23,7 @@ from .._errors import ConfigError, DataError
 from ..model import finish_model
 from ..train import RELEVANCE_LABEL, get_preset, train
 from ._objectives import OutputError
+from ._records import common_step, record_segments
 
 __all__ = ["free_run_diagnostics", "output_error_fit", "refine_output_error", "choose_substeps",
            "choose_segment_length", "slow_template"]
@@ -127,9 +128,11 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     started = time.perf_counter()
     template = model.template
     report: dict[str, Any] = {"objective": "output-error", "hold": settings.hold}
+    bounds = getattr(measured, "bounds", None)  # a RecordSet: several records, segments within each
     try:
         fm = ForwardModel(template)
-        dt = _uniform_step(measured)
+        dt = _uniform_step(measured) if bounds is None else common_step(measured.records, _uniform_step)
+        measured = measured if bounds is None else measured.joined
         refits = {name: trainable(model.curves[name]) for name in template.curve_names}
     except (ConfigError, DataError) as exc:
         if strict:
@@ -143,7 +146,8 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     meas_cols = _positions(measured, positions) if _has_columns(measured, positions) else None
     prep_cols = record_columns(prepared, template)
     substeps = int(settings.substeps or choose_substeps(np.asarray(prep_cols[positions[0]])))
-    L, starts, contiguous = _segments(n, L, int(settings.max_segments))
+    L, starts, contiguous = _segments(n, L, int(settings.max_segments)) if bounds is None else \
+        record_segments(bounds, L, int(settings.max_segments), _segments)
     S = starts.size
     M = max(r.theta.shape[0] for r in refits.values())
     pinned = {nm: bool(model.curves[nm].pinned_at_zero) for nm in template.curve_names}
@@ -258,6 +262,17 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     if not seg_after <= seg_before * (1 + 1e-9):
         return _kept(model, report, "failed: the free run did not improve; kept the equation-error model")
     y_first = rows[:, problem.n_shared:problem.n_shared + fm.n_state].mean(axis=0)
+    if bounds is not None:  # each record's own first state; one free run per record (no run across a join)
+        firsts = [int(np.searchsorted(starts, a)) for a, _ in bounds]
+        y_all = rows[:, problem.n_shared:].reshape(rows.shape[0], S, fm.n_state).mean(axis=0)
+        report["record_initial_states"] = [y_all[i].tolist() for i in firsts]
+        report["initial_state"] = report["record_initial_states"][0]
+        report["records"] = len(bounds)
+        report["status"] = "interrupted" if log.interrupted else "ok"
+        report["seconds"] = time.perf_counter() - started
+        new.info["output_error"] = report
+        new.info["objective"] = "output-error"
+        return new
     report["free_run_rmse_before"] = _free_run_rmse(model, measured, meas_cols, y_first, settings.hold, substeps)
     report["free_run_rmse_after"] = _free_run_rmse(new, measured, meas_cols, y_first, settings.hold, substeps)
     report["initial_state"] = y_first.tolist()

@@ -12,7 +12,7 @@ __all__ = ["free_run_error", "estimate_initial_state", "validate_cli"]
 
 
 def free_run_error(model, traj, *, hold: str = "linear", substeps: int = 4, x0: float | None = None,
-                   v0: float | None = None, time_budget: float = 120.0):
+                   v0: float | None = None, time_budget: float = 120.0, init_window: int | None = None):
     """Free-run simulation of ``model`` driven by the record's input, and its RMSE against x.
 
     Parameters
@@ -23,6 +23,10 @@ def free_run_error(model, traj, *, hold: str = "linear", substeps: int = 4, x0: 
     hold, substeps : see :func:`charcurves.simulate.simulate_sampled`.
     x0, v0 : float, optional
         Initial state; by default estimated from the first samples (:func:`estimate_initial_state`).
+    init_window : int, optional
+        The nonlinear benchmarks' convention: the initial state (velocity included) is fitted to the
+        first ``init_window`` samples only and the RMSE is counted after them (the run starts at the
+        first sample). None: the state is fitted to the first 128 samples, the RMSE over all.
 
     Returns
     -------
@@ -42,14 +46,28 @@ def free_run_error(model, traj, *, hold: str = "linear", substeps: int = 4, x0: 
     ('ok', True)
     """
     traj.require_uniform("a free-run simulation of a sampled record")
+    skip = check_init_window(init_window, traj.n_samples)
     if x0 is None or v0 is None:
-        ex0, ev0 = estimate_initial_state(model, traj, hold=hold, substeps=substeps)
+        n_fit = 128 if init_window is None else skip
+        ex0, ev0 = estimate_initial_state(model, traj, hold=hold, substeps=substeps, n_fit=n_fit)
         x0 = ex0 if x0 is None else x0
         v0 = ev0 if v0 is None else v0
     res = simulate_sampled(model, traj, float(x0), float(v0), hold=hold, substeps=substeps, time_budget=time_budget)
     if not res.ok:
         return float("inf"), res
-    return float(np.sqrt(np.mean((res.x - np.asarray(traj.x)) ** 2))), res
+    return float(np.sqrt(np.mean((res.x[skip:] - np.asarray(traj.x)[skip:]) ** 2))), res
+
+
+def check_init_window(init_window, n: int) -> int:
+    """The samples an initialisation window takes (0 for None); ConfigError unless 2 <= N <= n - 16."""
+    if init_window is None:
+        return 0
+    if isinstance(init_window, bool) or not isinstance(init_window, (int, np.integer)) or \
+            not 2 <= int(init_window) <= n - 16:
+        raise ConfigError(f"the initialisation window must be a whole number of samples from 2 to {n - 16} (the "
+                          f"record has {n}; at least 16 are left to count the RMSE on), got {init_window!r}; give "
+                          "e.g. --init-window 100")
+    return int(init_window)
 
 
 def estimate_initial_state(model, traj, *, hold: str = "linear", substeps: int = 4, n_fit: int = 128):
@@ -73,7 +91,7 @@ def estimate_initial_state(model, traj, *, hold: str = "linear", substeps: int =
     from scipy.optimize import least_squares
 
 
-    n = int(min(max(n_fit, 8), traj.n_samples))
+    n = int(min(max(n_fit, 2), traj.n_samples))
     x = np.asarray(traj.x[:n], dtype=float)
     ua, um, ub = stage_inputs(np.asarray(traj.F[:n]), substeps, hold)
     f1, f2, g, b = model.curves["f1"], model.curves["f2"], float(model.gain), float(model.offset)
@@ -98,12 +116,14 @@ def estimate_initial_state(model, traj, *, hold: str = "linear", substeps: int =
 
 
 def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_col="F", sample_rate=None,
-                 hold=None, substeps=None, out_dir=None) -> tuple[list[str], list[str]]:
+                 hold=None, substeps=None, out_dir=None, init_window=None) -> tuple[list[str], list[str]]:
     """``charcurves validate``: free runs of a saved model on row spans of a CSV record.
 
     The initial state of each span is estimated from its first 128 samples
-    (:func:`estimate_initial_state`); the RMSE is over every sample of the span. Returns the report
-    lines and the spans (``"start:stop"``) whose free run failed.
+    (:func:`estimate_initial_state`); the RMSE is over every sample of the span. With
+    ``init_window`` N (the benchmarks' convention) the state is fitted to the first N samples of each
+    span only and the RMSE counted after them. Returns the report lines and the spans
+    (``"start:stop"``) whose free run failed.
 
     Examples
     --------
@@ -147,14 +167,16 @@ def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_co
             raise DataError(f"--rows {span.start}:{span.stop} selects {max(stop - start, 0)} of the record's "
                             f"{full.n_samples} rows; give a span of at least 16 rows inside the record")
         seg = full.slice(slice(start, stop))
-        rmse, res = free_run_error(model, seg, hold=hold, substeps=substeps)
-        x = np.asarray(seg.x)
+        rmse, res = free_run_error(model, seg, hold=hold, substeps=substeps, init_window=init_window)
+        x = np.asarray(seg.x)[int(init_window or 0):]
         results.append({"rows": [start, stop], "status": res.status, "rmse": rmse,
+                        "rmse_rows": [start + int(init_window or 0), stop],
                         "rmse_relative_to_std": rmse / float(np.std(x)) if np.std(x) > 0 else None,
                         "std_x": float(np.std(x)), "seconds": res.seconds})
         sims.append((seg, res, f"{start}:{stop}"))
-    lines = [f"free run of {model_dir} ({model.method}; hold {hold}, {substeps} RK4 steps per sample; initial "
-             "state fitted to the first 128 samples)"]
+    how = "initial state fitted to the first 128 samples" if init_window is None else \
+        f"initial state fitted to the first {init_window} samples of each span, the RMSE counted after them"
+    lines = [f"free run of {model_dir} ({model.method}; hold {hold}, {substeps} RK4 steps per sample; {how})"]
     for r in results:
         pct = "" if r["rmse_relative_to_std"] is None else f" ({100 * r['rmse_relative_to_std']:.3g} % of std x)"
         lines.append(f"  rows {r['rows'][0]}:{r['rows'][1]}: {r['status']}, RMSE {r['rmse']:.5g}{pct}, "
@@ -166,6 +188,7 @@ def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_co
         rel = lambda p: os.path.relpath(os.path.abspath(os.fspath(p)), os.path.abspath(out_dir)).replace(os.sep, "/")  # noqa: E731
         failed = [r for r in results if r["status"] != "ok" or not np.isfinite(r["rmse"])]
         doc = {"model": rel(model_dir), "csv": rel(csv), "hold": hold, "substeps": int(substeps),
+               "init_window": None if init_window is None else int(init_window), "initial_state": how,
                "status": "failed" if failed else "ok", "segments": results}
         doc["non_finite"] = non_finite_paths(doc)
         atomic_write_bytes(os.path.join(out_dir, "validation.json"), json_bytes(doc))

@@ -1,0 +1,29 @@
+"""The registry of benchmark loaders: ``charcurves benchmark --real NAME``."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from .._errors import ConfigError
+from ._base import BenchmarkData
+from ._silverbox import silverbox
+
+__all__ = ["BENCHMARKS", "get_benchmark"]
+
+
+def _loaders() -> dict[str, Callable]:
+    # further benchmarks add their loader here (e.g. "bouc-wen": a simulation of its published definition)
+    return {"silverbox": silverbox}
+
+
+#: the benchmark names ``charcurves benchmark --real`` accepts
+BENCHMARKS = ("silverbox",)
+
+
+def get_benchmark(name: str, data_dir=None) -> BenchmarkData:
+    """The benchmark ``name`` (one of :data:`BENCHMARKS`) loaded from ``data_dir``."""
+    loaders = _loaders()
+    key = str(name).strip().lower()
+    if key not in loaders:
+        raise ConfigError(f"unknown real benchmark {name!r}; choose one of {', '.join(BENCHMARKS)}")
+    return loaders[key](data_dir=data_dir)
