@@ -10,6 +10,7 @@ FittedModel, load_model                                    fitted models and the
 plot_curves, plot_model, model_html, curve_lines, ...      views of a fitted model (figures, text, HTML)
 METHODS, PRESETS, TrainingPreset                           method and training presets
 fit_ensemble(s), bootstrap_records, detect_symmetry, parity_tests   ensembles and parity tests
+curve_band, posterior_bands, uncertainty_summary, LinearPosterior   the posterior of a fit
 """
 
 from ._ensemble import ENSEMBLE_KINDS as ENSEMBLE_KINDS
@@ -56,6 +57,14 @@ from ._plots import plot_model as plot_model
 from ._plots import resolve_truth as resolve_truth
 from ._post_sr import DATA_LOSS_TOLERANCE as DATA_LOSS_TOLERANCE
 from ._post_sr import distill_model as distill_model
+from ._posterior import curve_band as curve_band
+from ._posterior import model_posterior as model_posterior
+from ._posterior import posterior_bands as posterior_bands
+from ._posterior import scalar_lines as scalar_lines
+from ._posterior import uncertainty_summary as uncertainty_summary
+from ._posterior_linear import COVARIANCE_KINDS as COVARIANCE_KINDS
+from ._posterior_linear import LinearPosterior as LinearPosterior
+from ._posterior_linear import hac_bandwidth as hac_bandwidth
 from ._presets import PRESETS as PRESETS
 from ._presets import TrainingPreset as TrainingPreset
 from ._presets import get_preset as get_preset
