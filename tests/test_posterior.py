@@ -88,6 +88,19 @@ def test_hac_bandwidth_follows_the_residual_correlation():
     assert abs(hac_bandwidth(ar) - 1.1447 * (alpha * 3000) ** (1 / 3)) < 6
 
 
+def test_bartlett_sum_equals_the_sum_over_lags():
+    from charcurves.fitting._posterior_linear import bartlett_sum
+
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=(300, 4)).cumsum(axis=0) * 0.1 + rng.normal(size=(300, 4))
+    for L in (0, 1, 17, 150):
+        S = u.T @ u
+        for lag in range(1, L + 1):
+            G = u[lag:].T @ u[:-lag]
+            S += (1 - lag / (L + 1)) * (G + G.T)
+        assert np.allclose(bartlett_sum(u, L), S, rtol=1e-10, atol=1e-9)
+
+
 def test_a_posterior_whose_curves_changed_is_not_used(record):
     model = cc.fit(record, method="poly-cc")
     model.curves["f2"].shift += 0.5

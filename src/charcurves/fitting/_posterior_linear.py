@@ -59,6 +59,18 @@ def hac_bandwidth(r: np.ndarray) -> int:
     return int(min(np.ceil(1.1447 * (alpha * n) ** (1.0 / 3.0)), n // 4))
 
 
+def bartlett_sum(score: np.ndarray, L: int) -> np.ndarray:
+    """``sum_{|l| <= L} (1 - |l| / (L + 1)) sum_t u_{t+l} u_t^T`` of the rows ``u_t`` of ``score``, exactly,
+    as ``B^T B / (L + 1)`` with ``B`` the sums of the rows over every window of ``L + 1`` samples (those
+    cut by the ends included): a pair of rows ``l`` apart shares ``L + 1 - l`` windows. One product
+    instead of one per lag."""
+    n, k = score.shape
+    cum = np.vstack([np.zeros((1, k)), np.cumsum(score, axis=0)])
+    starts = np.arange(-int(L), n)
+    B = cum[np.minimum(starts + L + 1, n)] - cum[np.maximum(starts, 0)]
+    return B.T @ B / (L + 1.0)
+
+
 class LinearPosterior:
     """The posterior of a least-squares fit; built by :func:`charcurves.fitting.fit_linear` and kept as
     ``model.posterior`` (see :meth:`charcurves.FittedModel.curve_band`).
@@ -120,10 +132,7 @@ class LinearPosterior:
         res = np.zeros(rows.size)
         res[rows] = r
         L = hac_bandwidth(res.reshape(-1, n).sum(axis=0))
-        S = score.T @ score
-        for lag in range(1, L + 1):
-            G = score[lag:].T @ score[:-lag]
-            S += (1.0 - lag / (L + 1.0)) * (G + G.T)
+        S = bartlett_sum(score, L)
         w, Q = np.linalg.eigh((S + S.T) / 2)  # S = C C^T
         C = Q * np.sqrt(np.clip(w, 0.0, None) * (N / max(N - p, 1)))
         self._factors = {"gauss": np.sqrt(self.noise_variance) * Vf / norms[:, None],
@@ -216,27 +225,40 @@ class LinearPosterior:
         return curves, out
 
     def _jacobians(self, grids: dict):
-        """Values at the posterior mean and their exact Jacobians with respect to ``beta`` (the map
-        from the coefficients is linear: its columns are the images of the unit vectors)."""
+        """Values at the posterior mean and their exact Jacobians with respect to ``beta``: the map
+        from the coefficients is linear, a curve's column is its feature (1 for its constant) plus
+        the gauge's shift through the curves' values at 0 and the offsets."""
+        names, off_keys, new_keys, S, O = self._gauge_map()
         feats = {nm: self._features(nm, z) for nm, z in grids.items()}
-        phi0 = {nm: self._features(nm, np.array([0.0])) for nm in self.template.curve_names}
+        phi0 = self._phi0()
         coef, gain, D, dgain = self._split(self.beta)
-        c0, s0 = self._values(coef, feats, phi0)
         P = coef.size
-        jc = {nm: np.zeros((v.size, P)) for nm, v in c0.items()}
-        js = {k: np.zeros(P) for k in s0}
-        for i in range(P):
-            e = np.zeros(P)
-            e[i] = 1.0
-            ci, si = self._values(e, feats, phi0)
-            for nm in jc:
-                jc[nm][:, i] = ci[nm]
-            for k in js:
-                js[k][i] = si[k]
-        jc = {nm: J @ D for nm, J in jc.items()}
+        Jin = np.zeros((len(names) + len(off_keys), P))  # gauge inputs (values at 0, offsets) per coefficient
+        direct = {nm: np.zeros((ph.shape[0], P)) for nm, ph in feats.items()}
+        js = {k: np.zeros(P) for k in ("offset", *[k for o, k in self.owners if o == "__scalar"],
+                                       *[f"b{e + 1}" for e in new_keys if e > 0])}
+        for j, (owner, key) in enumerate(self.owners):
+            if owner == "__scalar":
+                js[key][j] = 1.0
+            elif owner == "__offset":
+                Jin[len(names) + off_keys.index(key), j] = 1.0
+            elif owner != "__gain":
+                Jin[names.index(owner), j] = 1.0 if key == "const" else phi0[owner][0, key]
+                if owner in direct:
+                    direct[owner][:, j] = 1.0 if key == "const" else feats[owner][:, key]
+        jc = {nm: (direct[nm] + (S[names.index(nm)] @ Jin)[None, :]) @ D for nm in feats}
+        dO = O @ Jin
+        for r, e in enumerate(new_keys):
+            js["offset" if e == 0 else f"b{e + 1}"] += dO[r]
         js = {k: v @ D for k, v in js.items()}
+        c0, s0 = self._values(coef, feats, phi0)
         s0, js = {"gain": gain, **s0}, {"gain": dgain, **js}
         return c0, s0, jc, js
+
+    def _phi0(self) -> dict:
+        if getattr(self, "_phi0_cache", None) is None:
+            self._phi0_cache = {nm: self._features(nm, np.array([0.0])) for nm in self.template.curve_names}
+        return self._phi0_cache
 
     def _variance(self, J: np.ndarray) -> np.ndarray:
         """Rows' variances ``diag(J cov J^T)``; infinite where a row loads on an unidentified direction."""
@@ -277,8 +299,7 @@ class LinearPosterior:
         for nm, curve in model.curves.items():
             lo, hi = curve.domain
             z = np.linspace(lo, hi, 5)
-            mine, _ = self._values(self._split(self.beta)[0], {nm: self._features(nm, z)},
-                                   {k: self._features(k, np.array([0.0])) for k in self.template.curve_names})
+            mine, _ = self._values(self._split(self.beta)[0], {nm: self._features(nm, z)}, self._phi0())
             ref = np.asarray(curve(z), dtype=float)
             if not np.allclose(mine[nm], ref, rtol=rtol, atol=rtol * (np.max(np.abs(ref)) + 1e-300)):
                 return False
