@@ -51,6 +51,7 @@ def _covers(model, truth):
     for k, true in (("gain", 1.0), ("offset", 0.0)):
         if k in stats["mean"]:
             scal[k] = bool(abs(stats["mean"][k] - true) <= zq * stats["sd"][k])
+            scal[f"{k}_error"], scal[f"{k}_sd"] = stats["mean"][k] - true, stats["sd"][k]
     return float(np.mean(np.concatenate(inside))), float(np.mean(width)), scal
 
 
@@ -130,9 +131,10 @@ def table(rows) -> str:
                     else f"{post_s:.4f} / {fit_s:.3f}")
             label = {"hac": "posterior (HAC, default)", "gauss": "posterior (iid noise)",
                      "bootstrap": f"bootstrap, {got[0].get('members')} refits"}[band]
+            share = lambda xs: f"{np.mean(xs):.2f}" if xs else "–"  # noqa: E731
             out.append(f"| {setting} | {method} | {label} | {np.mean([d['grid'] for d in got]):.3f} | "
-                       f"{np.mean(g):.2f} | {np.mean(o):.2f} | {np.mean([d['width'] for d in got]):.4f} | "
-                       f"{len(got)} | {secs} |".replace(" nan ", " – "))
+                       f"{share(g)} | {share(o)} | {np.mean([d['width'] for d in got]):.4f} | "
+                       f"{len(got)} | {secs} |")
     return "\n".join(out) + "\n"
 
 
@@ -155,6 +157,19 @@ def render(results_dir: str = OUT, page: str = PAGE, check: bool = False) -> boo
     return new == text
 
 
+def bias_lines(rows) -> list[str]:
+    """Per setting and method: the gain's mean error, the spread of its errors and its mean posterior
+    sd over the realisations (a bias shows as a mean error beside a right spread)."""
+    out = []
+    for setting, method in sorted({(r["setting"], r["method"]) for r in rows}):
+        d = [r["hac"] for r in rows if r["setting"] == setting and r["method"] == method and "gain_error" in r["hac"]]
+        if d:
+            e = np.array([x["gain_error"] for x in d])
+            out.append(f"{setting} {method}: gain error mean {e.mean():+.4f}, spread {e.std(ddof=1):.4f}, "
+                       f"posterior sd {np.mean([x['gain_sd'] for x in d]):.4f} ({len(d)} realisations)")
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--render", action="store_true",
@@ -174,6 +189,7 @@ def main(argv=None):
     with open(os.path.join(a.out, "coverage.json"), "w", encoding="utf-8") as fh:
         json.dump(rows, fh, indent=1)
     text = table(rows)
+    print("\n".join(bias_lines(rows)))
     with open(os.path.join(a.out, "coverage.md"), "w", encoding="utf-8") as fh:
         fh.write(text)
     print(text)

@@ -165,3 +165,24 @@ def test_bands_without_a_posterior_warn_and_name_the_bootstrap(tmp_path, record,
     assert any("has no posterior" in w and "--bands N" in w for w in result["warnings"])
     assert "--bands N for N bootstrap refits" in capsys.readouterr().err
 
+
+def test_the_coverage_table_of_the_docs_is_the_one_the_committed_results_give():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_coverage.py"
+    spec = importlib.util.spec_from_file_location("bench_coverage", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    assert bench.render(check=True), "run `python benchmarks/bench_coverage.py --render` and commit the page"
+
+
+@pytest.mark.parametrize("value", ["2", "poster", "8.5"])
+def test_a_bad_bands_value_is_one_line_naming_both_forms(tmp_path, record, capsys, value):
+    csv = tmp_path / "rec.csv"
+    record.to_csv(csv)
+    assert main(["fit", str(csv), "--out", str(tmp_path / "o"), "--bands", value]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "argument --bands: must be 'posterior' (the fit's own bands) or an integer from 3 to 1000" in err
+    assert not (tmp_path / "o").exists()
+

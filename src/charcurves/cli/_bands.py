@@ -13,7 +13,7 @@ def attach_posterior_bands(model, level: float, quiet: bool) -> None:
 
     bands = posterior_bands(model, level=level)
     if bands:
-        say(f"uncertainty bands: the fit's posterior ({next(iter(bands.values()))['kind']}), level {level:g}", quiet)
+        say(f"uncertainty bands: {next(iter(bands.values()))['kind']}, level {level:g}", quiet)
         attach_bands(model, bands)
         return
     model.info.setdefault("warnings", []).append(

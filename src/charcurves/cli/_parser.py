@@ -17,9 +17,19 @@ _RATE_HELP = "Hz, for a file without a time column (with one: drop it, or pass -
 
 def _bands_value(text: str):
     """``--bands``: "posterior" (the fit's own posterior) or the number of bootstrap refits."""
+    import argparse
+
     if text.strip().lower() == "posterior":
         return "posterior"
-    return cli_number("bands")(text)
+    try:
+        return cli_number("bands")(text)
+    except argparse.ArgumentTypeError as exc:
+        msg = str(exc)
+        raise argparse.ArgumentTypeError("must be 'posterior' (the fit's own bands) or " + msg.removeprefix("must be ")
+                                         ) from None
+
+
+_bands_value.__name__ = "int"  # a number where it is one: the bounds' property tests cover --bands N
 
 def ranged(name: str, text: str) -> str:
     """A help text with the option's range from the one table (charcurves._bounds.BOUNDS)."""
