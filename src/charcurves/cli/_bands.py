@@ -18,4 +18,4 @@ def attach_posterior_bands(model, level: float, quiet: bool) -> None:
         return
     model.info.setdefault("warnings", []).append(
         f"bands: this {model.method} fit has no posterior (today only least-squares fits by equation error have one: "
-        "poly-cc, parametric); use --bands N for N bootstrap refits")
+        "poly-cc, parametric, sindy-cc); use --bands N for N bootstrap refits")

@@ -1,11 +1,12 @@
 """The Gaussian posterior of a least-squares fit (:mod:`._linear_fit`): Poly-CC, parametric bases,
-any LinearCurve, with their constants, offsets, scalars and a free gain.
+any LinearCurve, with their constants, offsets, scalars and a free gain; a sparse (SINDy) fit's on
+the terms its regression kept, the support taken as known (:func:`active_design`).
 
 The fit solves ``min ||A beta - y||^2`` on the design ``A`` (columns scaled to unit norm). Under a
 flat prior (the least-squares fit has no decays) the posterior of ``beta`` is Gaussian with mean
 the solution and covariance
 
-* ``"gauss"``: ``s^2 (A^T A)^-1`` with ``s^2 = RSS / (N - p)`` (independent, equal-variance noise);
+* ``"gauss"``: ``s^2 (A^T A)^-1`` with ``s^2 = RSS / (N - k)``, ``k`` the design's rank (independent, equal-variance noise);
 * ``"hac"`` (the default): the Newey-West sandwich ``(A^T A)^-1 S (A^T A)^-1`` where ``S`` sums the
   lagged products of the score rows ``a_t r_t`` with Bartlett weights over a bandwidth from Andrews'
   (1991) AR(1) plug-in rule, ``L = 1.1447 (alpha n)^(1/3)``, ``alpha = 4 rho^2 / ((1 - rho)^2 (1 + rho)^2)``,
@@ -59,6 +60,26 @@ def hac_bandwidth(r: np.ndarray) -> int:
     return int(min(np.ceil(1.1447 * (alpha * n) ** (1.0 / 3.0)), n // 4))
 
 
+def active_design(template, D: dict, cols: list, owners: list, rows: np.ndarray, coef: np.ndarray, gain: float):
+    """The least-squares problem of a sparse fit on its active terms (the sparse regression's support
+    taken as given): ``(A, norms, target, coef_scaled, owners, force_side)`` in the layout of the
+    dense fit, the gain's column ``-F`` where the sparse fit learned it (STLSQ, the paper's SINDy)."""
+    keep = [j for j, c in enumerate(coef) if c != 0.0]
+    A = np.column_stack([cols[j] for j in keep]) if keep else np.zeros((len(D["y"]), 0))
+    owners = [owners[j] for j in keep]
+    beta = np.asarray(coef, dtype=float)[keep]
+    target = template.gain * D["F"] - D["y"]
+    if template.free_gain:
+        A = np.column_stack([A, -D["F"]])
+        owners.append(("__gain", 0))
+        beta = np.append(beta, gain)
+        target = -D["y"]
+    A = A[rows]
+    norms = np.linalg.norm(A, axis=0)
+    norms[norms == 0] = 1.0
+    return A, norms, target, beta * norms, owners, False
+
+
 def bartlett_sum(score: np.ndarray, L: int) -> np.ndarray:
     """``sum_{|l| <= L} (1 - |l| / (L + 1)) sum_t u_{t+l} u_t^T`` of the rows ``u_t`` of ``score``, exactly,
     as ``B^T B / (L + 1)`` with ``B`` the sums of the rows over every window of ``L + 1`` samples (those
@@ -84,7 +105,7 @@ class LinearPosterior:
     kind : str
         ``"hac"`` or ``"gauss"``.
     noise_variance : float
-        ``RSS / (N - p)`` of the equation's residual.
+        ``RSS / (N - k)`` of the equation's residual (``k`` the design's rank).
     hac_cov : ndarray
         The HAC covariance (``"hac"``).
     bandwidth : int
@@ -116,7 +137,6 @@ class LinearPosterior:
         N, p = A.shape
         self.beta = np.asarray(coef_scaled, dtype=float) / norms
         r = target - A @ coef_scaled
-        self.noise_variance = float(r @ r / max(N - p, 1))
         U, s, Vt = np.linalg.svd(A, full_matrices=False)
         self.condition_number = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
         s_inv = np.where(s > s[0] * 1e-13, 1.0 / np.where(s > 0, s, 1.0), np.inf)
@@ -125,7 +145,8 @@ class LinearPosterior:
         Vf = Vt[finite].T * s_inv[finite]  # columns V_k / s_k: (A^T A)^-1 = Vf Vf^T on the identified subspace
         # the sandwich on the design's orthonormal basis U (A = U s V^T): the scores u_t r_t are
         # well scaled whatever the conditioning of A, and cov = (V / s) S_U (V / s)^T
-        k = int(finite.sum())
+        k = int(finite.sum())  # the design's rank: the degrees of freedom the fit used
+        self.noise_variance = float(r @ r / max(N - k, 1))
         full = np.zeros((rows.size, k))
         full[rows] = U[:, finite] * r[:, None]
         score = full.reshape(-1, n, k).sum(axis=0)  # equations at the same instant share a row
@@ -134,7 +155,7 @@ class LinearPosterior:
         L = hac_bandwidth(res.reshape(-1, n).sum(axis=0))
         S = bartlett_sum(score, L)
         w, Q = np.linalg.eigh((S + S.T) / 2)  # S = C C^T
-        C = Q * np.sqrt(np.clip(w, 0.0, None) * (N / max(N - p, 1)))
+        C = Q * np.sqrt(np.clip(w, 0.0, None) * (N / max(N - k, 1)))
         self._factors = {"gauss": np.sqrt(self.noise_variance) * Vf / norms[:, None],
                          "hac": (Vf @ C) / norms[:, None]}
         self.gauss_cov = self._factors["gauss"] @ self._factors["gauss"].T
