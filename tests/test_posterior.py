@@ -218,3 +218,22 @@ def test_a_bad_bands_value_is_one_line_naming_both_forms(tmp_path, record, capsy
     assert "argument --bands: must be 'posterior' (the fit's own bands) or an integer from 3 to 1000" in err
     assert not (tmp_path / "o").exists()
 
+
+def test_the_figure_labels_a_posterior_band(record):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    from charcurves.fitting import plot_curves
+    from charcurves.selection import attach_bands
+
+    model = cc.fit(record, method="poly-cc")
+    attach_bands(model, posterior_bands(model, level=0.9))
+    fig = plot_curves(model)
+    for ax in fig.axes:
+        fills = [c for c in ax.collections if isinstance(c, PolyCollection)]
+        assert [f.get_label() for f in fills] == ["90% band (posterior (hac))"]
+    plt.close(fig)
+
