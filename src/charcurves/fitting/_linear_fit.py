@@ -206,7 +206,8 @@ def fit_linear(record, template: EquationTemplate, reps: dict, *, method: str, m
         target=target[rows], coef_scaled=coef_scaled, rows=rows, n=n, force_side=force_side,
         pinned={nm: c.pinned_at_zero for nm, c in model.curves.items()}, features=_features_numpy)
     model.info["posterior_seconds"] = time.perf_counter() - t1
-    model.info.setdefault("warnings", []).extend(model.posterior.warnings())
+    if model.posterior.warnings():
+        model.info.setdefault("warnings", []).extend(model.posterior.warnings())
     return model
 
 
