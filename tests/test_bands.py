@@ -148,7 +148,7 @@ def test_plot_curves_draws_the_model_bands():
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--bands", "2"], "argument --bands: must be an integer from 3 to 1000 (each member is one more fit"),
+    (["--bands", "2"], "argument --bands: must be 'posterior' (the fit's own bands) or an integer from 3 to 1000 (each member"),
     (["--bands", "4", "--bands-level", "95"], "argument --bands-level: must be a number from 1e-06 to 0.999999"),
 ])
 def test_cli_bad_bands_options_exit_2_before_fitting(tmp_path, capsys, args, message):

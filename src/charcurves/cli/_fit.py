@@ -68,11 +68,16 @@ def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_g
         if bands is not None:
             from ..fitting import check_band_options
 
-            check_band_options(bands, bands_level)  # before the fit: a bad option must not cost a long run
+            # before the fit: a bad option must not cost a long run
+            check_band_options(8 if bands == "posterior" else bands, bands_level)
         model = est.fit(traj).model_
         say(f"charcurves: priors: {model.info['priors']['summary']}"
             + ("; tests in result.json under 'symmetry'" if "symmetry_auto" in model.info else ""), quiet)
-        if bands is not None and not model.info.get("interrupted"):
+        if bands == "posterior" and not model.info.get("interrupted"):
+            from ._bands import attach_posterior_bands
+
+            attach_posterior_bands(model, bands_level, quiet)
+        elif bands is not None and not model.info.get("interrupted"):
             from ..fitting import fit_ensembles, resolved_estimator
             from ..selection import attach_bands, curve_bands
 
@@ -197,6 +202,9 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
                      "and model/ keep every digit)")
     for name, value in result.get("scalars", {}).items():  # unknown scalars of user-written templates
         lines.append(f"  {name} = {value:.6g}")
+    from ..fitting import scalar_lines
+
+    lines += scalar_lines(model)  # the posterior's ± (where the fit has one)
     if "output_error" in model.info:
         from ..fitting import summary_lines
 

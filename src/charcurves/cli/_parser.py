@@ -14,6 +14,23 @@ _TIME_HELP = "time column (default t); none: ignore any time column and use --sa
 _RATE_HELP = "Hz, for a file without a time column (with one: drop it, or pass --time-col none)"
 
 
+
+def _bands_value(text: str):
+    """``--bands``: "posterior" (the fit's own posterior) or the number of bootstrap refits."""
+    import argparse
+
+    if text.strip().lower() == "posterior":
+        return "posterior"
+    try:
+        return cli_number("bands")(text)
+    except argparse.ArgumentTypeError as exc:
+        msg = str(exc)
+        raise argparse.ArgumentTypeError("must be 'posterior' (the fit's own bands) or " + msg.removeprefix("must be ")
+                                         ) from None
+
+
+_bands_value.__name__ = "int"  # a number where it is one: the bounds' property tests cover --bands N
+
 def ranged(name: str, text: str) -> str:
     """A help text with the option's range from the one table (charcurves._bounds.BOUNDS)."""
     return f"{text}; range {range_text(name)}"
@@ -136,9 +153,10 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     f.add_argument("--snr", type=cli_number("snr_db"), default=None,
                    help=ranged("snr_db", "known SNR of the forcing in dB, for the self-check's noise floor (default: "
                                          "estimated)"))
-    f.add_argument("--bands", type=cli_number("bands"), default=None, metavar="N",
-                   help=ranged("bands", "uncertainty bands of the curves from an ensemble of N refits (result.json, "
-                                        "curves.png)"))
+    f.add_argument("--bands", type=_bands_value, nargs="?", const="posterior", default=None, metavar="posterior|N",
+                   help=ranged("bands", "uncertainty bands of the curves (result.json, curves.png): the fit's posterior "
+                                        "(--bands or --bands posterior; least-squares fits by equation error) or an "
+                                        "ensemble of N bootstrap refits (--bands N)"))
     f.add_argument("--bands-kind", choices=["bootstrap", "seeds"], default="bootstrap",
                    help="ensemble of --bands: wild residual bootstrap of the forcing (default) or training seeds")
     f.add_argument("--bands-level", type=cli_number("bands_level"), default=0.95,

@@ -30,6 +30,17 @@ class BenchmarkData:
         Published test RMSE in ``unit`` by model and test name, each with its source.
     source : str
         Where the records were read from.
+
+    Examples
+    --------
+    >>> from charcurves.datasets import BenchmarkData
+    >>> from charcurves.systems import get_system
+    >>> record = get_system("duffing").simulate(t_end=20.0, n_points=401)
+    >>> data = BenchmarkData(name="mine", estimation=record.slice(slice(0, 300)),
+    ...                      tests={"tail": record.slice(slice(300, 401))}, init_window=20, unit="m",
+    ...                      literature={}, source="simulated")
+    >>> list(data.tests), data.tests["tail"].t.size
+    (['tail'], 101)
     """
 
     name: str

@@ -21,7 +21,18 @@ BENCHMARKS = ("silverbox",)
 
 
 def get_benchmark(name: str, data_dir=None) -> BenchmarkData:
-    """The benchmark ``name`` (one of :data:`BENCHMARKS`) loaded from ``data_dir``."""
+    """The benchmark ``name`` (one of :data:`BENCHMARKS`) loaded from ``data_dir``.
+
+    Examples
+    --------
+    >>> from charcurves.datasets import BENCHMARKS, get_benchmark
+    >>> BENCHMARKS
+    ('silverbox',)
+    >>> get_benchmark("wiener-hammerstein")
+    Traceback (most recent call last):
+    ...
+    charcurves._errors.ConfigError: unknown real benchmark 'wiener-hammerstein'; choose one of silverbox
+    """
     loaders = _loaders()
     key = str(name).strip().lower()
     if key not in loaders:

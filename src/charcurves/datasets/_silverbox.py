@@ -80,6 +80,19 @@ def silverbox(data_dir=None) -> BenchmarkData:
         x is the output V2, F the input V1, in volts, sampled at 610.35 Hz; the tests
         "multisine", "arrow_full" and "arrow_no_extrapolation", each with a 50-sample
         initialisation window; RMSE in mV.
+
+    Examples
+    --------
+    A folder without the record is refused with the fix (with the files, ``data.estimation`` is
+    the record to fit and ``data.tests`` the three test records):
+
+    >>> import tempfile
+    >>> from charcurves.datasets import silverbox
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     silverbox(data_dir=folder)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    charcurves._errors.ConfigError: no Silverbox record at .../silverbox/SNLS80mV.csv; give the folder ...
     """
     folder = data_folder(data_dir, "silverbox")
     if folder is not None:

@@ -19,6 +19,14 @@ def run_real_benchmark(name: str, out_dir, *, data_dir=None, seed: int = 0, thre
     percentage of the standard deviation of the counted output, the NRMSE many papers give). Writes ``real.json`` and ``real.md`` in ``out_dir`` and returns the document.
 
     ``max_samples`` keeps the first samples of every record only (a quick run; not the benchmark).
+
+    Examples
+    --------
+    The example is not run here: it needs the Silverbox files (``data_dir``) and about a quarter
+    of an hour.
+
+    >>> sorted(run_real_benchmark("silverbox", "out/real", data_dir="data")["tests"])  # doctest: +SKIP
+    ['arrow_full', 'arrow_no_extrapolation', 'multisine']
     """
     from ..datasets import get_benchmark
     from ..fitting import CharacteristicCurves

@@ -28,6 +28,11 @@ from ._model_schema import model_digest as model_digest
 from ._oe_report import closed_form_text as closed_form_text
 from ._oe_report import summary_lines as summary_lines
 from ._plots import figure_png as figure_png
+from ._posterior import curve_band as curve_band
+from ._posterior import model_posterior as model_posterior
+from ._posterior import posterior_bands as posterior_bands
+from ._posterior import scalar_lines as scalar_lines
+from ._posterior import uncertainty_summary as uncertainty_summary
 from ._plots import plot_curves as plot_curves
 from ._plots import plot_model as plot_model
 from ._plots import resolve_truth as resolve_truth

@@ -62,6 +62,16 @@ class FittedModel:
         self.loss = float(loss)
         self.info = dict(info or {})
 
+    #: the posterior of the fit that made the model, where it computed one (charcurves.model._posterior)
+    posterior: Any = None
+
+    def curve_band(self, name: str, z, level: float = 0.95):
+        """``(value, lo, hi)`` of curve ``name`` at ``z``: the pointwise ``level`` posterior band
+        (:func:`charcurves.fitting.curve_band`)."""
+        from ._posterior import curve_band
+
+        return curve_band(self, name, z, level)
+
     # ------------------------------------------------------------------ evaluation
     def curve(self, name: str) -> FittedCurve:
         try:
@@ -259,6 +269,7 @@ class FittedModel:
             **({"symmetry": _jsonable(self.info["symmetry_auto"])} if "symmetry_auto" in self.info else {}),
             # uncertainty bands from an ensemble, when computed (charcurves.selection.attach_bands)
             **({"bands": _jsonable(bands)} if (bands := getattr(self, "bands", None)) else {}),
+            **({"uncertainty": _jsonable(u)} if (u := _uncertainty(self)) else {}),
             "info": _split_timings(_jsonable(self.info))[0],
         }
 
@@ -441,6 +452,12 @@ def _split_timings(obj, path: str = ""):
             timings.update(inner)
         return out, timings
     return obj, timings
+
+
+def _uncertainty(model):
+    from ._posterior import uncertainty_summary
+
+    return uncertainty_summary(model)
 
 
 def _jsonable(obj):

@@ -55,7 +55,9 @@ def plot_curves(model, truth: dict[str, Callable] | None = None, *, axes=None, n
         if name in bands:
             b = bands[name]
             ax.fill_between(b["z"], b["lo"], b["hi"], color="C0", alpha=0.25, lw=0, zorder=1,
-                            label=f"{b.get('level', 0.95):.0%} band ({b.get('members', '?')} {b.get('kind', 'members')})")
+                            label=f"{b.get('level', 0.95):.0%} band ("
+                                  + (f"{b.get('members', '?')} " if b.get("members") != 0 else "")  # 0: a posterior
+                                  + f"{b.get('kind', 'members')})")
         ax.plot(z, curve(z), color="C0", lw=2, label=label or model.method)
         if truth and name in truth:
             ax.plot(z, truth[name](z), "k--", lw=1.2, label="truth")

@@ -19,6 +19,9 @@ from ._evidence import EVIDENCE_SETTLED as EVIDENCE_SETTLED
 from ._evidence import SWEEP_TOL as SWEEP_TOL
 from ._linear_fit import l0_weight as l0_weight
 from ._long_record import SUBSET_SAMPLES as SUBSET_SAMPLES
+from ._posterior_linear import COVARIANCE_KINDS as COVARIANCE_KINDS
+from ._posterior_linear import LinearPosterior as LinearPosterior
+from ._posterior_linear import hac_bandwidth as hac_bandwidth
 from ._presets import PRESETS as PRESETS
 from ._presets import TrainingPreset as TrainingPreset
 from ._presets import get_preset as get_preset
@@ -34,4 +37,5 @@ from ._long_record import subset_indices  # noqa: F401
 from ._problem import LeastSquaresProblem  # noqa: F401
 
 __all__ = ["DECAY_GROUPS", "EVIDENCE_GUARD", "EVIDENCE_SETTLED", "PRESETS", "RELEVANCE_LABEL", "SUBSET_SAMPLES",
-           "SWEEP_TOL", "TrainingPreset", "constrained_sr3", "get_preset", "l0_weight"]
+           "SWEEP_TOL", "TrainingPreset", "constrained_sr3", "get_preset", "l0_weight", "COVARIANCE_KINDS",
+           "LinearPosterior", "hac_bandwidth"]

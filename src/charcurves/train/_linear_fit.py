@@ -194,7 +194,21 @@ def fit_linear(record, template: EquationTemplate, reps: dict, *, method: str, m
                                 scalings[nm][0], scalings[nm][1], 1.0, constant=by_curve[nm].get("const", 0.0))
     _describe(info, reps, curves, scalings, template)
     info["train_seconds"] = time.perf_counter() - t0
-    return finish_model(template, method, curves, gain, offs, scalars, record, info, mask)
+    model = finish_model(template, method, curves, gain, offs, scalars, record, info, mask)
+    # the Gaussian posterior of the solution (._posterior_linear); a sparse fit's on its active terms
+    from ._posterior_linear import LinearPosterior, active_design
+
+    t1 = time.perf_counter()
+    if sparse:
+        A, norms, target, coef_scaled, owners, force_side = active_design(template, D, cols, owners, rows, coef, gain)
+    model.posterior = LinearPosterior(
+        template=template, reps=reps, scalings=scalings, owners=owners, A=A / norms, norms=norms,
+        target=target[rows], coef_scaled=coef_scaled, rows=rows, n=n, force_side=force_side,
+        pinned={nm: c.pinned_at_zero for nm, c in model.curves.items()}, features=_features_numpy)
+    model.info["posterior_seconds"] = time.perf_counter() - t1
+    if model.posterior.warnings():
+        model.info.setdefault("warnings", []).extend(model.posterior.warnings())
+    return model
 
 
 #: largest magnitude a design column may reach (the record's own values are bounded the same way)
