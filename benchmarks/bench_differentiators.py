@@ -136,7 +136,7 @@ def fit_record(record, method: str, differentiator: str, objective: str | None =
         kw["basis"] = TRUE_BASIS[system_name]
     if objective not in (None, "equation-error"):
         kw["objective"] = objective
-    est = cc.CharacteristicCurves(method=method, derivatives=make_differentiator(differentiator),
+    est = cc.CharacteristicCurves.from_method(method=method, differentiator=make_differentiator(differentiator),
                                   random_state=seed, threads=1, **kw)
     t0 = time.perf_counter()
     model = est.fit(record).model_

@@ -156,7 +156,7 @@ def run_job(job) -> dict:
            "seed": seed, "load_start": round(os.getloadavg()[0], 2)}
     t0 = time.perf_counter()
     try:
-        model = cc.CharacteristicCurves(family=system.family, random_state=seed, threads=1, **kw).fit(record).model_
+        model = cc.CharacteristicCurves.from_method(family=system.family, random_state=seed, threads=1, **kw).fit(record).model_
         row["nrmse"] = score(model.curves, system, clean)
         info = getattr(model, "info", {}) or {}
         check = info.get("self_check")

@@ -137,6 +137,6 @@ def fit_parametric_oe(record, basis: str, *, seed: int = 0, derivatives: str = "
     """
     import charcurves as cc
 
-    est = cc.CharacteristicCurves(method="parametric", basis=basis, derivatives=derivatives,
-                                  refine="output-error", random_state=seed, threads=1)
+    est = cc.CharacteristicCurves.from_method(method="parametric", basis=basis, differentiator=derivatives,
+                                  objective="output-error", random_state=seed, threads=1)
     return est.fit(record).model_

@@ -4,8 +4,9 @@ fitted model and its files, and the paper's twelve methods as presets.
 Public API
 ----------
 CharacteristicCurves(template=..., differentiator=..., objective=..., post_sr=...)   the estimator
+CharacteristicCurves.from_method("nn-cc+sym", family=...), MethodPreset   the method presets
 fit(record, method="nn-cc+sym", ...)                       shortcut
-EquationError(), OutputError(...)                          objectives
+EquationError(), OutputError(...), Auto(...)               objectives
 FittedModel, load_model                                    fitted models and their files
 plot_curves, plot_model, model_html, curve_lines, ...      views of a fitted model (figures, text, HTML)
 METHODS, PRESETS, TrainingPreset                           method and training presets
@@ -40,7 +41,10 @@ from ._model import load_model as load_model
 from ._model import validate_model_document as validate_model_document
 from ._model_schema import check_model_digest as check_model_digest
 from ._model_schema import model_digest as model_digest
+from ._legacy import cli_objective as cli_objective
+from ._method_preset import MethodPreset as MethodPreset
 from ._objectives import OBJECTIVES as OBJECTIVES
+from ._objectives import Auto as Auto
 from ._objectives import EquationError as EquationError
 from ._objectives import OutputError as OutputError
 from ._oe_report import closed_form_text as closed_form_text

@@ -261,14 +261,13 @@ def _beyond_raw(estimator, records) -> bool:
 
 def _member_estimator(estimator, point):
     """The estimator for members: same settings, the point fit's jump decision, given derivatives."""
-    params = estimator.get_params()
+    params = estimator.flat_params()
     if params.get("jump") == "auto":
         # members keep the point fit's curve layout (a jump decided on the record, not per member)
         jumps = [name for name, c in point.curves.items() if getattr(getattr(c, "spec", None), "jump", False)]
         params["jump"] = jumps or "none"
-    params["derivatives"] = None  # the prepared record carries the derivatives the point fit used
-    params["differentiator"] = "auto"
+    params["differentiator"] = "auto"  # the prepared record carries the derivatives the point fit used
     params["progress"] = None
     if isinstance(params.get("symmetry"), str) and params["symmetry"].strip().lower() == "auto":
         params["symmetry"] = None  # members of an auto fit are drawn by the caller with resolved priors
-    return type(estimator)(**params)
+    return type(estimator).from_method(**params)

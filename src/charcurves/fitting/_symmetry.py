@@ -168,21 +168,21 @@ def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, th
     from ._methods import METHODS
 
     if estimator is None:
-        estimator = CharacteristicCurves(**estimator_params)
-    params = estimator.get_params()
+        estimator = CharacteristicCurves.from_method(**estimator_params)
+    params = estimator.flat_params()
     params.update(method=method, symmetry=None, random_state=int(random_state), progress=None, basis=None,
                   post_sr=None)
     if METHODS[method]["representation"] != "neural":  # a jump or a network shape belongs to neural curves
         params.update(jump="auto", hidden=None, activation=None)
     if objective is not None:
-        params.update(objective=objective, refine=None, refine_options=None)
+        params.update(objective=objective)
     try:
-        ensemble = fit_ensemble(CharacteristicCurves(**params), record, n_members, kind="bootstrap")
+        ensemble = fit_ensemble(CharacteristicCurves.from_method(**params), record, n_members, kind="bootstrap")
     except ConfigError as exc:
         # the residual bootstrap needs each equation's own forcing column; otherwise seeds only
         if "kind='seeds'" not in str(exc):
             raise
-        ensemble = fit_ensemble(CharacteristicCurves(**params), record, n_members, kind="seeds")
+        ensemble = fit_ensemble(CharacteristicCurves.from_method(**params), record, n_members, kind="seeds")
     return parity_tests(ensemble, threshold=threshold)
 
 
@@ -255,9 +255,9 @@ def fit_many_auto(estimator, trajectories, seeds=None, *, default: bool = False)
         proposals = {t[name]["proposal"] for t in tests}
         applied[name] = proposals.pop() if len(proposals) == 1 else "none"
     method = _method_for(estimator.method_name(), any(v != "none" for v in applied.values()))
-    params = estimator.get_params()
+    params = estimator.flat_params()
     params.update(method=method, symmetry=dict(applied))
-    models = CharacteristicCurves(**params).fit_many(trajectories, seeds=seeds)
+    models = CharacteristicCurves.from_method(**params).fit_many(trajectories, seeds=seeds)
     report = {
         "mode": "default (no method, no prior asked: tested)" if default else "auto",
         "applied": applied,
@@ -281,17 +281,17 @@ def resolved_estimator(estimator, model):
     >>> from charcurves.data import corrupt
     >>> from charcurves.fitting import CharacteristicCurves, resolved_estimator
     >>> from charcurves.systems import get_system
-    >>> estimator = CharacteristicCurves(method="poly-cc", symmetry="auto")
+    >>> estimator = CharacteristicCurves.from_method("poly-cc", symmetry="auto")
     >>> model = estimator.fit(corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)).model_
     >>> resolved_estimator(estimator, model)
-    CharacteristicCurves(method='poly-cc', symmetry={'f1': 'odd', 'f2': 'odd'})
+    CharacteristicCurves.from_method('poly-cc', symmetry={'f1': 'odd', 'f2': 'odd'})
     """
     report = model.info.get("symmetry_auto") if isinstance(model.info, dict) else None
     auto = isinstance(estimator.symmetry, str) and estimator.symmetry.strip().lower() == "auto"
     if not (auto or estimator.tests_priors()) or not report:
         return estimator
-    params = estimator.get_params()
+    params = estimator.flat_params()
     params.update(method=report["method"], symmetry=dict(report["applied"]))
-    return type(estimator)(**params)
+    return type(estimator).from_method(**params)
 
 
