@@ -1,7 +1,7 @@
 """The curve zoo (issue 46, item 1): every default method against the limit, on curves no polynomial guesses.
 
 For each system of ``benchmarks/zoo.py`` (17 systems, 34 scored curves, every family), each noise
-setting and seed, fits the record with ``CharacteristicCurves(method=...)`` and its defaults, and
+setting and seed, fits the record with ``CharacteristicCurves.from_method(method=...)`` and its defaults, and
 with the LIMIT: ``method="parametric"`` on the true closed form's terms (``basis=``), same default
 objective. Scores each curve by its normalised RMSE: the RMSE over the curve's argument range in
 the clean record (1000 points) divided by the standard deviation of the true curve there (as

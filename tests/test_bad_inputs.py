@@ -610,7 +610,7 @@ API_ONLY = [
     (lambda: Trajectory(t=[0, 1, 2], x=[1, 2], F=[0, 0, 0]), DataError, "column 'x' has 2 samples but 't' has 3"),
     (lambda: Trajectory(t=np.zeros((3, 3)), x=np.zeros(3), F=np.zeros(3)), DataError, "must be one-dimensional"),
     (lambda: Trajectory(t=["a", "b"], x=[0, 1], F=[0, 1]), DataError, "column 't' is not numeric"),
-    (lambda: CharacteristicCurves().set_params(learning_rate=1), ConfigError, "CharacteristicCurves has no parameter 'learning_rate'; valid: template"),
+    (lambda: CharacteristicCurves().set_params(learning_rate=1), ConfigError, "characteristiccurves has no parameter 'learning_rate'; valid: template"),
     (lambda: CharacteristicCurves.from_method(symmetry=3, threads=1).fit(None), ConfigError, "symmetry must be a string"),
     (lambda: CharacteristicCurves.from_method(gain="heavy", threads=1).fit(None), ConfigError, "gain must be a finite"),
     (lambda: CharacteristicCurves.from_method(gain=0.0, threads=1).fit(None), ConfigError, "gain must be a finite non-zero"),

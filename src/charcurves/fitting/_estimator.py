@@ -145,8 +145,24 @@ class CharacteristicCurves(Params):
             Leave out samples where the mass sticks.
         sr_options : dict, optional
             Symbolic regression settings (engine, generations, ...) of the SR methods and post-SR.
-        differentiator, objective, post_sr, preset, random_state, threads, device, progress, snr_db
-            As :class:`CharacteristicCurves`.
+        differentiator : str or Differentiator, optional
+            As :class:`CharacteristicCurves`: "auto" (None), "given", a name or an instance.
+        objective : str or EquationError or OutputError or Auto
+            As :class:`CharacteristicCurves`: "auto", "equation-error", "output-error" or an object.
+        post_sr : bool, optional
+            Distil the fitted curves into closed forms; None: the method's choice (the "+post-sr" methods).
+        preset : str or TrainingPreset
+            Training settings of gradient-trained curves: "default", "paper" or a TrainingPreset.
+        random_state : int
+            Seed of every random choice (0 to 2**32 - 1).
+        threads : int, optional
+            Torch threads during the whole fit (None leaves torch's setting).
+        device : str
+            Where neural curves train: "cpu" or "cuda".
+        progress : callable, optional
+            ``progress(phase, step, total, loss)`` during training.
+        snr_db : float, optional
+            Known signal-to-noise ratio of the forcing in dB for the self-check (None: estimated).
 
         Examples
         --------
@@ -159,19 +175,10 @@ class CharacteristicCurves(Params):
         ...
         charcurves._errors.ConfigError: degree= applies to poly-cc and the SINDy methods, not to method 'nn-cc'
         """
-        if degree is not None:
-            rep = METHODS[method]["representation"] if method in METHODS else "neural"
-            if rep not in ("poly", "sindy"):
-                raise ConfigError(f"degree= applies to poly-cc and the SINDy methods, not to method "
-                                  f"{method or 'nn-cc (the default)'!r}")
-            if "degree" in (options or {}) and options["degree"] != degree:  # type: ignore[index]
-                raise ConfigError("give the degree once: degree= or options={'degree': ...}")
-            options = {**(options or {}), "degree": degree}
-        preset_obj = MethodPreset(method, family=family, equation=equation, symmetry=symmetry, free_gain=free_gain,
-                                  gain=gain, gauge=gauge, gain_on=gain_on, jump=jump, basis=basis, options=options,
-                                  hidden=hidden, activation=activation, exclude_sticking=exclude_sticking,
-                                  sr_options=sr_options)
-        preset_obj.check(template)
+        preset_obj = MethodPreset.build(method, template=template, family=family, equation=equation,
+                                        symmetry=symmetry, free_gain=free_gain, gain=gain, gauge=gauge, gain_on=gain_on,
+                                        jump=jump, basis=basis, options=options, degree=degree, hidden=hidden,
+                                        activation=activation, exclude_sticking=exclude_sticking, sr_options=sr_options)
         return cls(template, method=preset_obj, differentiator=differentiator, objective=objective, post_sr=post_sr,
                    preset=preset, random_state=random_state, threads=threads, device=device, progress=progress,
                    snr_db=snr_db)

@@ -92,6 +92,23 @@ class MethodPreset(Params):
         self.exclude_sticking = exclude_sticking
         self.sr_options = sr_options
 
+    @classmethod
+    def build(cls, name: str | None = None, *, template=None, degree: int | None = None, options: dict | None = None,
+              **shorthands: Any) -> MethodPreset:
+        """The preset of :meth:`CharacteristicCurves.from_method`: ``degree`` folded into ``options``,
+        checked against ``template`` (see :meth:`check`)."""
+        if degree is not None:
+            rep = METHODS[name]["representation"] if name in METHODS else "neural"
+            if rep not in ("poly", "sindy"):
+                raise ConfigError(f"degree= applies to poly-cc and the SINDy methods, not to method "
+                                  f"{name or 'nn-cc (the default)'!r}")
+            if "degree" in (options or {}) and (options or {})["degree"] != degree:
+                raise ConfigError("give the degree once: degree= or options={'degree': ...}")
+            options = {**(options or {}), "degree": degree}
+        preset = cls(name, options=options, **shorthands)
+        preset.check(template)
+        return preset
+
     def given(self) -> list[str]:
         """The shorthands set to something other than their default (in signature order)."""
         sig = inspect.signature(type(self).__init__)

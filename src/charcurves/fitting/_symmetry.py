@@ -69,7 +69,7 @@ def parity_tests(ensemble, *, threshold: float = PARITY_THRESHOLD, n_grid: int =
     >>> from charcurves.fitting import CharacteristicCurves, fit_ensemble, parity_tests
     >>> from charcurves.systems import get_system
     >>> record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
-    >>> tests = parity_tests(fit_ensemble(CharacteristicCurves(method="poly-cc"), record, 8))
+    >>> tests = parity_tests(fit_ensemble(CharacteristicCurves.from_method(method="poly-cc"), record, 8))
     >>> {name: t["proposal"] for name, t in tests.items()}
     {'f1': 'odd', 'f2': 'odd'}
     """
@@ -221,7 +221,7 @@ def fit_many_auto(estimator, trajectories, seeds=None, *, default: bool = False)
     >>> from charcurves.fitting import CharacteristicCurves, fit_many_auto
     >>> from charcurves.systems import get_system
     >>> record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
-    >>> [model] = fit_many_auto(CharacteristicCurves(method="poly-cc", symmetry="auto"), [record])
+    >>> [model] = fit_many_auto(CharacteristicCurves.from_method(method="poly-cc", symmetry="auto"), [record])
     >>> model.info["symmetry_auto"]["applied"], model.method
     ({'f1': 'odd', 'f2': 'odd'}, 'poly-cc')
     """

@@ -76,6 +76,11 @@ class Template(Params):
     def _param_names(self) -> list[str]:  # the curves of the template are parameters (Params' rule)
         return self._names()
 
+    def __eq__(self, other: object) -> bool:
+        return type(self) is type(other) and self.get_params(deep=False) == other.get_params(deep=False)  # type: ignore[attr-defined]
+
+    __hash__ = None  # type: ignore[assignment]  # mutable through set_params
+
     def __repr__(self) -> str:
         parts = [f"{n}={getattr(self, n)!r}" for n in self._names()
                  if getattr(self, n) is not None and not (n in _OPTIONS and getattr(self, n) == _DEFAULTS[n])]
