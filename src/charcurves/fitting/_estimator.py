@@ -7,7 +7,7 @@ from __future__ import annotations
 import copy
 import inspect
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,6 +20,11 @@ from ._methods import METHODS, check_method_options, method_curve, parse_basis_o
 from ._model import FittedModel
 from ._presets import TrainingPreset, get_preset
 from ._priors import name_prior_in_warnings, priors_record
+
+if TYPE_CHECKING:
+    from ..data import Differentiator
+    from ..templates import Template
+    from ._objectives import Auto, EquationError, OutputError
 
 __all__ = ["CharacteristicCurves", "fit", "MAX_SEED"]
 
@@ -62,7 +67,7 @@ class CharacteristicCurves(Params):
         ``progress(phase, step, total, loss)`` during training.
     snr_db : float, optional
         Known signal-to-noise ratio of the forcing in dB for the self-check (None: the noise floor is estimated).
-    **legacy
+    **legacy : Any
         The older spellings (``method="nn-cc"``, ``family=``, ``symmetry=``, ``derivatives=``, ``refine=``...): accepted for one release with a FutureWarning; use :meth:`from_method`.
 
     Examples
@@ -76,8 +81,9 @@ class CharacteristicCurves(Params):
     0.3
     """
 
-    def __init__(self, template=None, *, method: MethodPreset | None = None, differentiator=None,
-                 objective="auto", post_sr: bool | None = None, preset: str | TrainingPreset = "default",
+    def __init__(self, template: Template | None = None, *, method: MethodPreset | None = None,
+                 differentiator: str | Differentiator | None = None,
+                 objective: str | EquationError | OutputError | Auto = "auto", post_sr: bool | None = None, preset: str | TrainingPreset = "default",
                  random_state: int = 0, threads: int | None = None, device: str = "cpu",
                  progress: Callable | None = None, snr_db: float | None = None, **legacy: Any):
         if legacy or isinstance(method, str):  # the older spelling: one FutureWarning, then the same objects
@@ -95,13 +101,15 @@ class CharacteristicCurves(Params):
         self.snr_db = snr_db
 
     @classmethod
-    def from_method(cls, method: str | None = None, *, template=None, family: str = "separable",
+    def from_method(cls, method: str | None = None, *, template: Template | None = None, family: str = "separable",
                     equation: str | None = None, symmetry: str | dict | None = None, free_gain: bool = False,
-                    gain: float = 1.0, gauge=None, gain_on: str = "force", jump: str | Sequence[str] = "auto",
+                    gain: float = 1.0, gauge: str | Sequence[str] | None = None, gain_on: str = "force",
+                    jump: str | Sequence[str] = "auto",
                     basis: str | dict | list | None = None, options: dict | None = None, degree: int | None = None,
                     hidden: Sequence[int] | None = None, activation: str | None = None,
-                    exclude_sticking: bool = True, sr_options: dict | None = None, differentiator=None,
-                    objective="auto", post_sr: bool | None = None, preset: str | TrainingPreset = "default",
+                    exclude_sticking: bool = True, sr_options: dict | None = None,
+                    differentiator: str | Differentiator | None = None,
+                    objective: str | EquationError | OutputError | Auto = "auto", post_sr: bool | None = None, preset: str | TrainingPreset = "default",
                     random_state: int = 0, threads: int | None = None, device: str = "cpu",
                     progress: Callable | None = None, snr_db: float | None = None) -> CharacteristicCurves:
         """The estimator of one of the paper's methods, its shorthands turned into a :class:`MethodPreset`.
@@ -131,7 +139,7 @@ class CharacteristicCurves(Params):
             With a free gain, the noisy side and regression target: "force" or "acceleration".
         jump : str or sequence of str
             A learned jump at 0 of neural curves: "auto" (where the record sticks), "none" or curve names.
-        basis : str, dict or list, optional
+        basis : str or dict or list, optional
             The functions of each curve of method "parametric" ("f1=z; f2=z, z**3").
         options : dict, optional
             Options of the method's representation ({"degree": 10}, {"threshold": 0.05}) and of sticking detection.
@@ -271,26 +279,7 @@ class CharacteristicCurves(Params):
             from ..symbolic import make_engine
 
             make_engine(m.sr_options)
-        self._check_basis_cost()
-
-    def _check_basis_cost(self) -> None:
-        """Refuse basis functions whose exact evaluation by sympy could hang (e.g. ``9**9**9*z``)."""
-        import re
-
-        from ..curves import expression_cost_problem
-
-        basis = self._shorthands().basis
-        if isinstance(basis, str):
-            texts = re.split(r"[;,=]", basis)
-        elif isinstance(basis, dict):
-            texts = [str(f) for v in basis.values() for f in (v if isinstance(v, (list, tuple)) else [v])]
-        else:
-            return
-        for text in texts:
-            problem = expression_cost_problem(text.strip())
-            if problem:
-                raise ConfigError(f"basis function {text.strip()[:60]!r} {problem}; write a plain closed form "
-                                  "such as 'z**3' or 'tanh(50*z)'")
+        m.check_basis_cost()
 
     def differentiator_value(self):
         return "auto" if self.differentiator is None else self.differentiator

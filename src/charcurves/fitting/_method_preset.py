@@ -48,7 +48,7 @@ class MethodPreset(Params):
         With a free gain, the noisy side: "force" or "acceleration".
     jump : str or sequence of str
         A learned jump at 0 of neural curves: "auto", "none" or curve names.
-    basis : str, dict or list, optional
+    basis : str or dict or list, optional
         The functions of each curve of method "parametric" ("f1=z; f2=z, z**3").
     options : dict, optional
         Options of the method's representation ({"degree": 10}) and of sticking detection.
@@ -72,7 +72,8 @@ class MethodPreset(Params):
     """
 
     def __init__(self, name: str | None = None, *, family: str = "separable", equation: str | None = None,
-                 symmetry: str | dict | None = None, free_gain: bool = False, gain: float = 1.0, gauge=None,
+                 symmetry: str | dict | None = None, free_gain: bool = False, gain: float = 1.0,
+                 gauge: str | Sequence[str] | None = None,
                  gain_on: str = "force", jump: str | Sequence[str] = "auto", basis: str | dict | list | None = None,
                  options: dict | None = None, hidden: Sequence[int] | None = None, activation: str | None = None,
                  exclude_sticking: bool = True, sr_options: dict | None = None):
@@ -151,6 +152,24 @@ class MethodPreset(Params):
             why = f"{label} does not take them"
         raise ConfigError(f"{', '.join(ignored)} would be ignored: {why} (leave them out, or choose a method that "
                           "uses them)")
+
+    def check_basis_cost(self) -> None:
+        """Refuse basis functions whose exact evaluation by sympy could hang (e.g. ``9**9**9*z``)."""
+        import re
+
+        from ..curves import expression_cost_problem
+
+        if isinstance(self.basis, str):
+            texts = re.split(r"[;,=]", self.basis)
+        elif isinstance(self.basis, dict):
+            texts = [str(f) for v in self.basis.values() for f in (v if isinstance(v, (list, tuple)) else [v])]
+        else:
+            return
+        for text in texts:
+            problem = expression_cost_problem(text.strip())
+            if problem:
+                raise ConfigError(f"basis function {text.strip()[:60]!r} {problem}; write a plain closed form "
+                                  "such as 'z**3' or 'tanh(50*z)'")
 
     def __repr__(self) -> str:
         shown = ([f"name={self.name!r}"] if self.name is not None else []) + \
