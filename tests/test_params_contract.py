@@ -142,3 +142,12 @@ def test_repr_shows_how_to_build_the_estimator_again():
     assert repr(CharacteristicCurves(template=cc.Separable(f1=cc.Neural()))) == \
         "CharacteristicCurves(template=Separable(f1=Neural()))"
     assert CharacteristicCurves.from_method(**est.flat_params()).get_params() == est.get_params()
+
+
+def test_the_shortcuts_take_the_old_names_with_a_warning(duffing_20db):
+    new = cc.fit(duffing_20db, method="poly-cc", differentiator="given", objective="equation-error", threads=1)
+    with pytest.warns(FutureWarning, match="derivatives=, refine= is the older spelling"):
+        old = cc.fit(duffing_20db, method="poly-cc", derivatives="given", refine="none", threads=1)
+    z = np.linspace(-1.0, 1.0, 101)
+    assert np.asarray(old.curves["f2"](z)).tobytes() == np.asarray(new.curves["f2"](z)).tobytes()
+    assert old.info["settings"] == new.info["settings"]

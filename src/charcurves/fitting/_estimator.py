@@ -476,4 +476,6 @@ def fit(traj, method: str | None = None, **kwargs) -> FittedModel:
     >>> model.method, {k: round(v, 3) for k, v in cc.curve_errors(model, system.true_curves()).items()}
     ('poly-cc', {'f1': 0.001, 'f2': 0.002})
     """
-    return CharacteristicCurves.from_method(method, **kwargs).fit(traj).model_
+    from ._legacy import estimator_from_options
+
+    return estimator_from_options(method, **kwargs).fit(traj).model_
