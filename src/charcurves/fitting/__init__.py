@@ -42,7 +42,7 @@ from ._model import validate_model_document as validate_model_document
 from ._model_schema import check_model_digest as check_model_digest
 from ._model_schema import model_digest as model_digest
 from ._legacy import cli_objective as cli_objective
-from ._legacy import estimator_from_options as estimator_from_options
+from ._legacy import legacy_options as legacy_options
 from ._method_preset import MethodPreset as MethodPreset
 from ._objectives import OBJECTIVES as OBJECTIVES
 from ._objectives import Auto as Auto

@@ -14,7 +14,7 @@ import numpy as np
 from .._bounds import check_number
 from .._errors import ConfigError, NotFittedError
 from .._params import Params
-from ._legacy import from_legacy
+from ._legacy import from_legacy, legacy_options
 from ._method_preset import MethodPreset
 from ._methods import METHODS, check_method_options, method_curve, parse_basis_option, parse_symmetry
 from ._model import FittedModel
@@ -476,6 +476,4 @@ def fit(traj, method: str | None = None, **kwargs) -> FittedModel:
     >>> model.method, {k: round(v, 3) for k, v in cc.curve_errors(model, system.true_curves()).items()}
     ('poly-cc', {'f1': 0.001, 'f2': 0.002})
     """
-    from ._legacy import estimator_from_options
-
-    return estimator_from_options(method, **kwargs).fit(traj).model_
+    return CharacteristicCurves.from_method(method, **legacy_options(kwargs)).fit(traj).model_

@@ -12,7 +12,7 @@ from .._errors import ConfigError
 from ._method_preset import MethodPreset
 from ._objectives import Auto, EquationError, OutputError, resolve_objective
 
-__all__ = ["SHORTHANDS", "LEGACY_NAMES", "from_legacy", "cli_objective", "estimator_from_options"]
+__all__ = ["SHORTHANDS", "LEGACY_NAMES", "from_legacy", "cli_objective", "legacy_options"]
 
 #: the method shorthands (MethodPreset's parameters besides the method's name)
 SHORTHANDS = tuple(p for p in inspect.signature(MethodPreset.__init__).parameters if p not in ("self", "name"))
@@ -42,25 +42,25 @@ def from_legacy(method, differentiator, objective, legacy: dict[str, Any]):
     return MethodPreset(method, **legacy), differentiator, objective
 
 
-def estimator_from_options(method: str | None = None, **options: Any):
-    """``CharacteristicCurves.from_method(method, **options)``, where the older names ``derivatives=``,
-    ``refine=`` and ``refine_options=`` still work for one release (with a FutureWarning): what the
-    shortcuts that take the estimator's settings as keywords (``fit``, ``select_family``) build.
+def legacy_options(options: dict[str, Any]) -> dict[str, Any]:
+    """``CharacteristicCurves.from_method`` keywords of ``options``, where the older names
+    ``derivatives=``, ``refine=`` and ``refine_options=`` still work for one release (with a
+    FutureWarning) as ``differentiator=`` and ``objective=``: what the shortcuts that take the
+    estimator's settings as keywords (``fit``, ``select_family``, ``detect_symmetry``) pass on.
 
     Examples
     --------
-    >>> from charcurves.fitting import estimator_from_options
-    >>> estimator_from_options("poly-cc", differentiator="spline").differentiator
-    'spline'
+    >>> from charcurves.fitting import legacy_options
+    >>> legacy_options({"method": "poly-cc", "differentiator": "spline"})
+    {'method': 'poly-cc', 'differentiator': 'spline'}
     """
-    from ._estimator import CharacteristicCurves
-
     old = [k for k in LEGACY_NAMES if k in options]
     if not old:
-        return CharacteristicCurves.from_method(method, **options)
+        return options
     warnings.warn(f"{', '.join(k + '=' for k in old)} is the older spelling and goes in the next release; use "
                   "differentiator= (for derivatives=) and objective= (for refine=, refine_options=)", FutureWarning,
                   stacklevel=3)
+    options = dict(options)
     derivatives = options.pop("derivatives", None)
     if derivatives is not None:
         if options.get("differentiator") not in (None, derivatives):
@@ -68,7 +68,7 @@ def estimator_from_options(method: str | None = None, **options: Any):
         options["differentiator"] = derivatives
     options["objective"] = cli_objective(options.get("objective"), options.pop("refine", None),
                                          options.pop("refine_options", None))
-    return CharacteristicCurves.from_method(method, **options)
+    return options
 
 
 def cli_objective(objective, refine: str | None = None, refine_options: dict | None = None):

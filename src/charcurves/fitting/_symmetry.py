@@ -165,11 +165,11 @@ def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, th
     """
     from ._ensemble import fit_ensemble
     from ._estimator import CharacteristicCurves
-    from ._legacy import estimator_from_options
+    from ._legacy import legacy_options
     from ._methods import METHODS
 
     if estimator is None:
-        estimator = estimator_from_options(**estimator_params)
+        estimator = CharacteristicCurves.from_method(**legacy_options(estimator_params))
     params = estimator.flat_params()
     params.update(method=method, symmetry=None, random_state=int(random_state), progress=None, basis=None,
                   post_sr=None)

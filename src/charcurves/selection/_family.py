@@ -148,7 +148,7 @@ def select_family(trajectories: Sequence, families: Sequence[str] = DEFAULT_FAMI
     """
     import time
 
-    from ..fitting import estimator_from_options, fit_ensembles
+    from ..fitting import CharacteristicCurves, fit_ensembles, legacy_options
 
     from .._bounds import check_number
 
@@ -162,13 +162,14 @@ def select_family(trajectories: Sequence, families: Sequence[str] = DEFAULT_FAMI
     if not families:
         raise ConfigError("no candidate family given; e.g. --families separable,position-damping")
     for family in families:  # an unknown family or method fails now, not after the first family's fits
-        estimator_from_options(method, family=family, random_state=random_state, threads=threads,
-                               **estimator_params).resolve()
+        CharacteristicCurves.from_method(method, family=family, random_state=random_state, threads=threads,
+                                         **legacy_options(estimator_params)).resolve()
     split = len(trajectories) == 1
     if split:
         trajectories = split_record(trajectories[0], 2)
-    estimators = [estimator_from_options(method, family=family, random_state=random_state, threads=threads,
-                                         **estimator_params) for family in families]
+    estimator_params = legacy_options(estimator_params)
+    estimators = [CharacteristicCurves.from_method(method, family=family, random_state=random_state, threads=threads,
+                                                   **estimator_params) for family in families]
     fitted, fit_each = None, 0.0
     if fit is not None:
         t0 = time.perf_counter()
