@@ -31,7 +31,7 @@ for i, snr in enumerate(snrs):
     for r in range(max(1, n // len(snrs))):
         trajs.append(corrupt(clean, float(snr), seed=1000 * i + r)); seeds.append(1000 * i + r)
 t0 = time.perf_counter()
-models = cc.CharacteristicCurves(method=method, threads=1).fit_many(trajs, seeds=seeds)
+models = cc.CharacteristicCurves.from_method(method=method, threads=1).fit_many(trajs, seeds=seeds)
 sec = time.perf_counter() - t0
 errs = [cc.curve_errors(m, truth) for m in models]
 at20 = [e for e, s in zip(errs, np.repeat(snrs, max(1, n // len(snrs)))) if abs(s - 20) < 3]

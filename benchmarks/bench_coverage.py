@@ -84,7 +84,7 @@ def run(realisations: int, bootstrap: int, bootstrap_records: int, methods, sett
         for method in methods:
             for r in range(realisations):
                 record = cc.corrupt(clean, snr, on=on, seed=r)
-                est = cc.CharacteristicCurves(method=method, objective="equation-error", random_state=r, threads=1,
+                est = cc.CharacteristicCurves.from_method(method=method, objective="equation-error", random_state=r, threads=1,
                                               **{"free_gain": True, **METHODS[method]})
                 t0 = time.perf_counter()
                 model = est.fit(record).model_

@@ -6,7 +6,7 @@ at each SNR (``corrupt(traj, snr, on="state", seed=s)``, seeds 0..N-1):
 (a) relative RMSE of x' and x'' against the clean record (RMSE / std of the clean derivative),
     interior 90 % and whole record, and seconds per record, for every differentiator;
 (b) each differentiator as the derivative estimate of an equation-error fit,
-    ``CharacteristicCurves(method=..., derivatives=<differentiator>)`` for ``parametric`` (true
+    ``CharacteristicCurves.from_method(method=..., differentiator=<differentiator>)`` for ``parametric`` (true
     basis), ``poly-cc`` and ``nn-cc+sym``: worst-curve RMSE (max over f1, f2 of
     ``curve_errors(model, system.true_curves())``);
 (c) in the same run, the references: PySINDy's weak form run as a practitioner would (the peer,
@@ -117,7 +117,7 @@ def fit_record(record, method: str, differentiator: str, objective: str | None =
         ``parametric`` (with the system's true basis, :data:`peers.TRUE_BASIS`), ``poly-cc``,
         ``nn-cc+sym`` or any other method name.
     differentiator : str
-        A label of :data:`DIFFERENTIATORS` (passed as ``derivatives=`` instance).
+        A label of :data:`DIFFERENTIATORS` (passed as ``differentiator=`` instance).
     objective : str or None
         ``None`` or ``"equation-error"``: today's fit. Any other value is handed to the estimator
         as ``objective=...`` (the output-error objective of issue 26, once it exists).
@@ -136,7 +136,7 @@ def fit_record(record, method: str, differentiator: str, objective: str | None =
         kw["basis"] = TRUE_BASIS[system_name]
     if objective not in (None, "equation-error"):
         kw["objective"] = objective
-    est = cc.CharacteristicCurves(method=method, derivatives=make_differentiator(differentiator),
+    est = cc.CharacteristicCurves.from_method(method=method, differentiator=make_differentiator(differentiator),
                                   random_state=seed, threads=1, **kw)
     t0 = time.perf_counter()
     model = est.fit(record).model_

@@ -65,7 +65,7 @@ def main(argv=None) -> int:
         record = corrupt(clean, 40.0, on="state", seed=s)
         for label, kw in runs:
             t0 = time.perf_counter()
-            model = cc.CharacteristicCurves(family="first-order", random_state=s, threads=1, **kw).fit(record).model_
+            model = cc.CharacteristicCurves.from_method(family="first-order", random_state=s, threads=1, **kw).fit(record).model_
             f1, _, _ = _per_bin(model.curves["f1"], truth["f1"])
             f2, per, bias = _per_bin(model.curves["f2"], truth["f2"])
             print(f"seed {s} {label:<26} f1 {100 * f1:5.2f} %  f2 {100 * f2:5.2f} %  f2 per bin (%): "

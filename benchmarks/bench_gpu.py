@@ -50,7 +50,7 @@ def check(device: str, n: int) -> dict:
     out = {}
     for dev in ("cpu", device):
         t0 = time.perf_counter()
-        models = cc.CharacteristicCurves(method="nn-cc+sym", device=dev, threads=1).fit_many(trajs, seeds=seeds)
+        models = cc.CharacteristicCurves.from_method(method="nn-cc+sym", device=dev, threads=1).fit_many(trajs, seeds=seeds)
         out[dev] = {"seconds": time.perf_counter() - t0, "models": models}
     z = np.linspace(-1, 1, 201)
     diff = max(float(np.max(np.abs(a.curves[c](z) - b.curves[c](z))))
@@ -76,7 +76,7 @@ def grid(device: str, methods, preset: str, full: bool, realizations=None) -> di
     results = {}
     for method in methods:
         jobs, trajs = _datasets(snr, reals, method, preset)
-        est = cc.CharacteristicCurves(method=method, preset=preset, device=device, threads=1)
+        est = cc.CharacteristicCurves.from_method(method=method, preset=preset, device=device, threads=1)
         t0 = time.perf_counter()
         models = est.fit_many(trajs, seeds=[j.fit_seed for j in jobs])
         if device.startswith("cuda"):

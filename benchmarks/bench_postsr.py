@@ -46,7 +46,7 @@ def main():
         system = get_system(name)
         truth = system.true_curves()
         record = corrupt(system.simulate(), 20.0, seed=args.seed)
-        model = cc.CharacteristicCurves(method="nn-cc+sym", random_state=args.seed, threads=1).fit(record).model_
+        model = cc.CharacteristicCurves.from_method(method="nn-cc+sym", random_state=args.seed, threads=1).fit(record).model_
         for cname, curve in model.curves.items():
             grid = np.linspace(*curve.domain, 1000)
             nn_rmse = float(np.sqrt(np.mean((curve(grid) - truth[cname](grid)) ** 2)))

@@ -53,7 +53,7 @@ def speed(n: int, repeat: int) -> dict:
     for label, kw in (("linear least squares (parametric)", dict(**PARAM, objective="equation-error")),
                       ("batched networks (nn-cc+sym)", dict(method="nn-cc+sym", objective="equation-error",
                                                             threads=1))):
-        est = cc.CharacteristicCurves(**kw)
+        est = cc.CharacteristicCurves.from_method(**kw)
         est.fit(one)  # warm-up (imports, first torch call)
         t1 = _timed(est, one, repeat)
         t3 = _timed(est, three, repeat)
@@ -89,7 +89,7 @@ def duffing(seeds, snr: float) -> dict:
         t0 = time.perf_counter()
         joint = cc.CharacteristicCurves(random_state=seed, threads=1).fit(records).model_
         t_joint = time.perf_counter() - t0
-        pooled = cc.CharacteristicCurves(**PARAM, random_state=seed).fit(records).model_
+        pooled = cc.CharacteristicCurves.from_method(**PARAM, random_state=seed).fit(records).model_
         alone = [cc.CharacteristicCurves(random_state=seed, threads=1).fit(r).model_ for r in records]
         run: dict = {"seed": seed, "joint_seconds": t_joint, "curves": {}}
         for name in ("f1", "f2"):

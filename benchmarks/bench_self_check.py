@@ -96,7 +96,7 @@ def run_case(label, system, noise, method, kw, seeds):
     for seed in range(seeds):
         rec = corrupt(clean, noise[1], on=noise[0], seed=seed)
         started = time.perf_counter()
-        model = CharacteristicCurves(method=method, threads=1, random_state=seed, **kw).fit(rec).model_
+        model = CharacteristicCurves.from_method(method=method, threads=1, random_state=seed, **kw).fit(rec).model_
         seconds.append(time.perf_counter() - started)
         check = model.info["self_check"]
         tests = check["residual_tests"]["tests"]

@@ -50,7 +50,7 @@ def _fit(record, method, objective, differentiator, seed):
     kw = {"differentiator": differentiator} if differentiator != "spectral" else {}
     if differentiator == "savgol":
         kw = {"differentiator": cc.SavitzkyGolay(window=31, order=3)}
-    est = cc.CharacteristicCurves(method=method, objective=objective, random_state=seed, threads=1, **kw)
+    est = cc.CharacteristicCurves.from_method(method=method, objective=objective, random_state=seed, threads=1, **kw)
     t0 = time.perf_counter()
     model = est.fit(record).model_
     return model, time.perf_counter() - t0
@@ -135,7 +135,7 @@ def run_family(job):
     record = _family_record(system, seed)
     rows = []
     for objective in ("equation-error", "auto"):
-        est = cc.CharacteristicCurves(family=system.family, method=method, objective=objective, random_state=seed,
+        est = cc.CharacteristicCurves.from_method(family=system.family, method=method, objective=objective, random_state=seed,
                                       threads=1, **options)
         t0 = time.perf_counter()
         model = est.fit(record).model_

@@ -29,7 +29,7 @@ from charcurves.data import corrupt
 from charcurves.systems import get_system
 clean = get_system("duffing").simulate()
 recs = [corrupt(clean, 20.0, seed=s) for s in range(first, first + count)]
-cc.CharacteristicCurves(method="nn-cc+sym", threads=threads).fit_many(recs, seeds=list(range(first, first + count)))
+cc.CharacteristicCurves.from_method(method="nn-cc+sym", threads=threads).fit_many(recs, seeds=list(range(first, first + count)))
 """
 
 

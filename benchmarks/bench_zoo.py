@@ -1,7 +1,7 @@
 """The curve zoo (issue 46, item 1): every default method against the limit, on curves no polynomial guesses.
 
 For each system of ``benchmarks/zoo.py`` (17 systems, 34 scored curves, every family), each noise
-setting and seed, fits the record with ``CharacteristicCurves(method=...)`` and its defaults, and
+setting and seed, fits the record with ``CharacteristicCurves.from_method(method=...)`` and its defaults, and
 with the LIMIT: ``method="parametric"`` on the true closed form's terms (``basis=``), same default
 objective. Scores each curve by its normalised RMSE: the RMSE over the curve's argument range in
 the clean record (1000 points) divided by the standard deviation of the true curve there (as
@@ -156,7 +156,7 @@ def run_job(job) -> dict:
            "seed": seed, "load_start": round(os.getloadavg()[0], 2)}
     t0 = time.perf_counter()
     try:
-        model = cc.CharacteristicCurves(family=system.family, random_state=seed, threads=1, **kw).fit(record).model_
+        model = cc.CharacteristicCurves.from_method(family=system.family, random_state=seed, threads=1, **kw).fit(record).model_
         row["nrmse"] = score(model.curves, system, clean)
         info = getattr(model, "info", {}) or {}
         check = info.get("self_check")

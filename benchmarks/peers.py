@@ -9,7 +9,7 @@ Two functions that the state-noise benchmarks share:
   are read off the ``x''`` (i.e. ``v'``) equation as minus its terms in ``v`` and in ``x``; the
   ``F`` coefficient is read (``info["gain"]``) but not divided out: the gain is taken as 1.
 * :func:`fit_parametric_oe` -- charcurves' parametric fit on the true basis, refined by output
-  error (``refine="output-error"``, spectral derivatives for the start): the accuracy limit that
+  error (``objective="output-error"``, spectral derivatives for the start): the accuracy limit that
   the same record supports with a correct closed form.
 
 Both return an object with ``.curves`` (``{"f1": callable with .domain, "f2": ...}``), so
@@ -132,11 +132,11 @@ def fit_pysindy_weak(record, *, degree: int = 5, threshold: float = 0.1, window:
 def fit_parametric_oe(record, basis: str, *, seed: int = 0, derivatives: str = "spectral"):
     """Parametric fit on ``basis`` (the true one: the limit), refined by output error.
 
-    ``CharacteristicCurves(method="parametric", basis=basis, derivatives=derivatives,
-    refine="output-error")``; returns the fitted model (``.curves``, ``.info``).
+    ``CharacteristicCurves.from_method(method="parametric", basis=basis, differentiator=derivatives,
+    objective="output-error")``; returns the fitted model (``.curves``, ``.info``).
     """
     import charcurves as cc
 
-    est = cc.CharacteristicCurves(method="parametric", basis=basis, derivatives=derivatives,
-                                  refine="output-error", random_state=seed, threads=1)
+    est = cc.CharacteristicCurves.from_method(method="parametric", basis=basis, differentiator=derivatives,
+                                              objective="output-error", random_state=seed, threads=1)
     return est.fit(record).model_

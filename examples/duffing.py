@@ -33,7 +33,7 @@ def main(argv=None):
 
     system = get_system("duffing")
     record = corrupt(system.simulate(t_end=40.0 * (args.samples - 1) / 999, n_points=args.samples), args.snr, on="force", seed=args.seed)
-    model = cc.CharacteristicCurves(method="nn-cc+sym+post-sr", random_state=args.seed).fit(record).model_
+    model = cc.CharacteristicCurves.from_method(method="nn-cc+sym+post-sr", random_state=args.seed).fit(record).model_
 
     truth = system.true_curves()
     errors = curve_errors(model, truth)

@@ -44,7 +44,7 @@ def main(argv=None):
     truth = system.true_curves()
     fits = {}
     for objective in ("equation-error", "auto"):  # "auto", the default: equation then output error
-        estimator = cc.CharacteristicCurves(method="nn-cc+sym", objective=objective, random_state=args.seed)
+        estimator = cc.CharacteristicCurves.from_method(method="nn-cc+sym", objective=objective, random_state=args.seed)
         fits[objective] = estimator.fit(record).model_
         errors = curve_errors(fits[objective], truth)
         print(f"{objective}: ran {fits[objective].info.get('objective', objective)}; "

@@ -34,7 +34,7 @@ def main(argv=None):
 
     system = get_system("stick-slip")
     record = corrupt(system.simulate(t_end=40.0 * (args.samples - 1) / 999, n_points=args.samples), args.snr, on="force", seed=args.seed)
-    estimator = cc.CharacteristicCurves(method="nn-cc+sym", jump="f1", random_state=args.seed)
+    estimator = cc.CharacteristicCurves.from_method(method="nn-cc+sym", jump="f1", random_state=args.seed)
     model = estimator.fit(record).model_
 
     parts = model.curves["f1"].components()

@@ -34,7 +34,7 @@ def main(argv=None):
 
     system = get_system("two-dof")
     record = corrupt_forces(system.simulate(t_end=50.0 * (args.samples - 1) / 999, n_points=args.samples), args.snr, seed=args.seed)  # noise on F1 and F2
-    estimator = cc.CharacteristicCurves(family="two-dof", method="nn-cc", random_state=args.seed)
+    estimator = cc.CharacteristicCurves.from_method(family="two-dof", method="nn-cc", random_state=args.seed)
     model = estimator.fit(record).model_
 
     print(f"equation: {model.template.equation}")

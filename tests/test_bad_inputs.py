@@ -82,12 +82,12 @@ TIME = [
     Bad("time-goes-back", "back_t", (), ("time goes back at row 51", "strictly increasing", "sort the rows")),
     Bad("nonuniform-savgol", "nonuniform", ("--derivatives", "savgol"),
         ("'savgol' differentiator needs uniform sampling", "row 200", "resample", "--derivatives spline"),
-        est_kw={"derivatives": "savgol"}),
+        est_kw={"differentiator": "savgol"}),
     Bad("nonuniform-spectral", "nonuniform", ("--derivatives", "spectral"),
         ("'spectral' differentiator needs uniform sampling", "resample", "--derivatives spline"),
-        est_kw={"derivatives": "spectral"}),
+        est_kw={"differentiator": "spectral"}),
     Bad("given-derivatives-absent", "txf", ("--derivatives", "given"), ("needs v and a columns", "--derivatives spline"),
-        est_kw={"derivatives": "given"}),
+        est_kw={"differentiator": "given"}),
 ]
 
 #: parametric has no default basis: its rows give the Duffing basis explicitly
@@ -109,7 +109,7 @@ SHORT = [
 ] + [
     Bad("one-sample", "one_row", (), ("at least 2 samples", "got 1", "longer record")),
     Bad("too-few-for-savgol-window", "short31", ("--derivatives", "savgol"),
-        ("window=31 needs at least 62 samples", "has 31", "smaller window"), est_kw={"derivatives": "savgol"}),
+        ("window=31 needs at least 62 samples", "has 31", "smaller window"), est_kw={"differentiator": "savgol"}),
     Bad("rows-select-too-few", "base", ("--rows", "10:20"), ("needs at least 30 samples", "has 10"),
         csv_kw={"rows": slice(10, 20)}),
 ]
@@ -159,7 +159,7 @@ NAMES = [
     Bad("unknown-preset", "base", ("--preset", "turbo"), ("unknown preset 'turbo'", "default, paper"),
         ConfigError, est_kw={"preset": "turbo"}),
     Bad("unknown-differentiator", "base", ("--derivatives", "magic"), ("unknown differentiator 'magic'", "savgol"),
-        ConfigError, est_kw={"derivatives": "magic"}),
+        ConfigError, est_kw={"differentiator": "magic"}),
     Bad("jump-on-unknown-curve", "base", ("--jump", "f7"), ("unknown curve 'f7'", "f1, f2"),
         ConfigError, est_kw={"jump": ["f7"]}),
     Bad("jump-on-non-neural-method", "base", ("--method", "poly-cc", "--jump", "f1"),
@@ -391,7 +391,7 @@ TWO_DOF = [
         est_kw={"family": "two-dof"}, multi=True),
     Bad("two-dof-given-derivatives-absent", "two_no_derivatives", (*_TD, "--derivatives", "given"),
         ("--derivatives given needs the derivative columns", "--derivatives spline"),
-        est_kw={"family": "two-dof", "derivatives": "given"}, multi=True),
+        est_kw={"family": "two-dof", "differentiator": "given"}, multi=True),
     Bad("two-dof-single-dof-record", "base", _TD, ("no state column 'x1'", "t,x1,x2,f1,f2"), csv_kw=None),
     Bad("two-dof-unknown-gauge", "two", (*_TD, "--gauge", "f9"), ("gauge", "unknown curve 'f9'"), ConfigError,
         est_kw={"family": "two-dof", "gauge": "f9"}, multi=True),
@@ -414,7 +414,7 @@ EQUATIONS = [
         est_kw={"equation": "x'' + f1(x') + f2(x) = F2", "method": "poly-cc"}),
     Bad("equation-derivative-the-record-lacks", "txf", ("--equation", _EQ, "--derivatives", "given"),
         ("--derivatives given needs the derivative columns", "--derivatives spline"), DataError,
-        est_kw={"equation": _EQ, "derivatives": "given"}),
+        est_kw={"equation": _EQ, "differentiator": "given"}),
     Bad("equation-unknown-function", "base", ("--equation", "x'' + f1(x') + cosh2(x) = F"),
         ("'cosh2' is not allowed", "use states x"), ConfigError, est_kw={"equation": "x'' + f1(x') + cosh2(x) = F"}),
     Bad("equation-unknown-curve-name", "base", ("--equation", "x'' + g1(x') + f2(x) = F"),
@@ -593,7 +593,7 @@ def test_api_raises_the_specific_error(bad, files, locked):
     reader = MultiTrajectory.from_csv if bad.multi else Trajectory.from_csv
     with pytest.raises(Exception) as info:
         traj = reader(files[bad.file], **bad.csv_kw)
-        CharacteristicCurves(**{"threads": 1, **bad.est_kw}).fit(traj)
+        CharacteristicCurves.from_method(**{"threads": 1, **bad.est_kw}).fit(traj)
     exc = info.value
     assert type(exc) is bad.error, f"{type(exc).__name__}: {exc}"
     message = str(exc)
@@ -610,10 +610,10 @@ API_ONLY = [
     (lambda: Trajectory(t=[0, 1, 2], x=[1, 2], F=[0, 0, 0]), DataError, "column 'x' has 2 samples but 't' has 3"),
     (lambda: Trajectory(t=np.zeros((3, 3)), x=np.zeros(3), F=np.zeros(3)), DataError, "must be one-dimensional"),
     (lambda: Trajectory(t=["a", "b"], x=[0, 1], F=[0, 1]), DataError, "column 't' is not numeric"),
-    (lambda: CharacteristicCurves().set_params(learning_rate=1), ConfigError, "unknown parameter 'learning_rate'"),
-    (lambda: CharacteristicCurves(symmetry=3, threads=1).fit(None), ConfigError, "symmetry must be a string"),
-    (lambda: CharacteristicCurves(gain="heavy", threads=1).fit(None), ConfigError, "gain must be a finite"),
-    (lambda: CharacteristicCurves(gain=0.0, threads=1).fit(None), ConfigError, "gain must be a finite non-zero"),
+    (lambda: CharacteristicCurves().set_params(learning_rate=1), ConfigError, "characteristiccurves has no parameter 'learning_rate'; valid: template"),
+    (lambda: CharacteristicCurves.from_method(symmetry=3, threads=1).fit(None), ConfigError, "symmetry must be a string"),
+    (lambda: CharacteristicCurves.from_method(gain="heavy", threads=1).fit(None), ConfigError, "gain must be a finite"),
+    (lambda: CharacteristicCurves.from_method(gain=0.0, threads=1).fit(None), ConfigError, "gain must be a finite non-zero"),
 ]
 
 
@@ -732,7 +732,7 @@ def test_fuzz_basis_option_fits_or_raises_config_error(parts, small_record):
     another exception (the text is token-checked before sympy sees it; exponent bombs are refused)."""
     text = "".join(parts)
     try:
-        model = CharacteristicCurves(method="parametric", basis=text, threads=1).fit(small_record).model_
+        model = CharacteristicCurves.from_method(method="parametric", basis=text, threads=1).fit(small_record).model_
     except ConfigError as exc:
         assert str(exc) and "\n" not in str(exc)
         return
@@ -753,7 +753,7 @@ def test_fuzz_equation_against_a_record_fits_or_raises_a_charcurves_error(parts,
 
     text = "".join(a + o for a, o in parts)
     try:
-        model = CharacteristicCurves(method="poly-cc", equation=text, threads=1).fit(small_record).model_
+        model = CharacteristicCurves.from_method(method="poly-cc", equation=text, threads=1).fit(small_record).model_
     except CharCurvesError as exc:
         assert str(exc) and "\n" not in str(exc)
         return
@@ -775,4 +775,4 @@ def test_a_one_sided_prior_on_a_smoothed_record_says_the_smoothing_did_it():
     with pytest.raises(IdentifiabilityError, match=r"^an odd prior on f2 .* but the record as the differentiator "
                                                     r"smoothed it covers only \[0\.0623, 1\.8\].*crosses 0 \(a record "
                                                     r"whose noise swamps the signal smooths to its slow part\)$"):
-        CharacteristicCurves(method="nn-cc+sym", threads=1).fit(record)
+        CharacteristicCurves.from_method(method="nn-cc+sym", threads=1).fit(record)

@@ -58,7 +58,7 @@ def test_bad_band_level_is_refused(kwargs, message):
 def test_bootstrap_keeps_the_state_and_flips_residual_signs():
     system = get_system("duffing")
     rec = corrupt(system.simulate(), 20, seed=0)
-    model = CharacteristicCurves(method="poly-cc").fit(rec).model_
+    model = CharacteristicCurves.from_method(method="poly-cc").fit(rec).model_
     boots = bootstrap_records(rec, model, 3, random_state=1)
     resid = model.force_residual(rec)
     f_hat = rec.F + resid
@@ -73,20 +73,20 @@ def test_bootstrap_keeps_the_state_and_flips_residual_signs():
 def test_ensemble_size_is_checked():
     rec = get_system("duffing").simulate()
     with pytest.raises(ConfigError, match="at least 3 members"):
-        fit_ensemble(CharacteristicCurves(method="poly-cc"), rec, 2)
+        fit_ensemble(CharacteristicCurves.from_method(method="poly-cc"), rec, 2)
     with pytest.raises(ConfigError, match="unknown ensemble kind 'jackknife'"):
-        fit_ensemble(CharacteristicCurves(method="poly-cc"), rec, 4, kind="jackknife")
+        fit_ensemble(CharacteristicCurves.from_method(method="poly-cc"), rec, 4, kind="jackknife")
 
 
 def test_poly_cc_bootstrap_bands_cover_the_duffing_curves():
     system = get_system("duffing")
     rec = corrupt(system.simulate(), 20, seed=0)
-    ens = fit_ensemble(CharacteristicCurves(method="poly-cc"), rec, 8)
+    ens = fit_ensemble(CharacteristicCurves.from_method(method="poly-cc"), rec, 8)
     cov = band_coverage(curve_bands(ens, level=0.95), system.true_curves())
     # measured: 1.0 and 0.945 (seed 0); 0.98-1.0 over seeds 1, 2
     assert cov["f1"] >= 0.9 and cov["f2"] >= 0.9
     # the seeds ensemble of a least-squares fit has no spread: bands collapse on the point fit
-    flat = curve_bands(fit_ensemble(CharacteristicCurves(method="poly-cc"), rec, 3, kind="seeds"))
+    flat = curve_bands(fit_ensemble(CharacteristicCurves.from_method(method="poly-cc"), rec, 3, kind="seeds"))
     assert max(flat["f2"]["sd"]) < 1e-9
 
 
@@ -95,7 +95,7 @@ def test_poly_cc_bootstrap_bands_of_a_two_dof_record():
 
     system = get_system("two-dof")
     rec = corrupt_forces(system.simulate(t_end=50.0, n_points=1000), 25, seed=0)
-    ens = fit_ensemble(CharacteristicCurves(family="two-dof", method="poly-cc"), rec, 8)
+    ens = fit_ensemble(CharacteristicCurves.from_method(family="two-dof", method="poly-cc"), rec, 8)
     assert ens.kind == "bootstrap"
     bands = curve_bands(ens, level=0.95)
     assert all(min(bands[k]["sd"]) > 0 for k in ("f1", "f2", "f3", "f4"))
@@ -138,7 +138,7 @@ def test_plot_curves_draws_the_model_bands():
     from charcurves.report import plot_curves
 
     rec = corrupt(get_system("duffing").simulate(), 20, seed=0)
-    ens = fit_ensemble(CharacteristicCurves(method="poly-cc"), rec, 4)
+    ens = fit_ensemble(CharacteristicCurves.from_method(method="poly-cc"), rec, 4)
     attach_bands(ens.point, curve_bands(ens, level=0.9))
     fig = plot_curves(ens.point)
     for ax in fig.axes:
@@ -164,7 +164,7 @@ def test_cli_bad_bands_options_exit_2_before_fitting(tmp_path, capsys, args, mes
 def test_nn_cc_bootstrap_bands_cover_the_duffing_curves():
     system = get_system("duffing")
     rec = corrupt(system.simulate(), 20, seed=0)
-    ens = fit_ensemble(CharacteristicCurves(method="nn-cc"), rec, 8)
+    ens = fit_ensemble(CharacteristicCurves.from_method(method="nn-cc"), rec, 8)
     cov = band_coverage(curve_bands(ens, level=0.95), system.true_curves())
     # measured on seed 0: f1 1.0, f2 0.95 (over seeds 0-3 the mean is 0.89 for f1 and 0.97 for f2)
     assert cov["f1"] >= 0.9 and cov["f2"] >= 0.9

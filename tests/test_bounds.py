@@ -104,9 +104,9 @@ def test_the_estimator_checks_the_same_ranges():
              ({"hidden": [0]}, "integers from 1 to 4096")]
     for kwargs, words in cases:
         with pytest.raises(ConfigError) as info:
-            CharacteristicCurves(**kwargs).check()
+            CharacteristicCurves.from_method(**kwargs).check()
         assert words in str(info.value) and "\n" not in str(info.value), (kwargs, str(info.value))
-    CharacteristicCurves(hidden=(16, 16), free_gain=np.bool_(True), threads=1).check()  # in range: accepted
+    CharacteristicCurves.from_method(hidden=(16, 16), free_gain=np.bool_(True), threads=1).check()  # in range: accepted
 
 
 def test_the_objects_that_take_the_numbers_check_them():

@@ -73,7 +73,7 @@ def test_issue_acceptance_user_equation_with_mixed_curves(arrangement):
 def test_method_presets_build_the_same_objects(duffing):
     """``method="poly-cc"`` is a shorthand for Polynomial curves: the same fit to the last bit."""
     _, record = duffing
-    a = cc.CharacteristicCurves(method="poly-cc").fit(record).model_
+    a = cc.CharacteristicCurves.from_method(method="poly-cc").fit(record).model_
     b = cc.CharacteristicCurves(template=cc.Separable(f1=cc.Polynomial(), f2=cc.Polynomial())).fit(record).model_
     z = np.linspace(-1, 1, 21)
     for name in ("f1", "f2"):

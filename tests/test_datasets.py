@@ -43,7 +43,7 @@ def test_benchmark_real_quick_run_writes_the_test_rmse(silverbox_dir, tmp_path, 
     from charcurves.experiments import run_real_benchmark
     from charcurves.fitting import CharacteristicCurves
 
-    est = CharacteristicCurves(method="parametric", basis="f1=z; f2=z, z**3", free_gain=True,
+    est = CharacteristicCurves.from_method(method="parametric", basis="f1=z; f2=z, z**3", free_gain=True,
                                objective="equation-error")
     doc = run_real_benchmark("silverbox", tmp_path / "q", data_dir=silverbox_dir, max_samples=4096, estimator=est)
     assert doc["quick"] and doc["init_window"] == 50 and list(doc["tests"]) == [

@@ -167,8 +167,8 @@ def test_separable_equation_gives_the_same_fit_as_the_separable_family(duffing_2
     z = np.linspace(-1.2, 1.2, 25)
     text = "x'' + f1(x') + f2(x) = F"
     for method, kw in (("poly-cc", {}), ("nn-cc+sym", {}), ("parametric", {"basis": "f1=z; f2=z, z**3"})):
-        a = CharacteristicCurves(method=method, random_state=0, threads=1, **kw).fit(duffing_20db).model_
-        b = CharacteristicCurves(equation=text, method=method, random_state=0, threads=1, **kw).fit(duffing_20db).model_
+        a = CharacteristicCurves.from_method(method=method, random_state=0, threads=1, **kw).fit(duffing_20db).model_
+        b = CharacteristicCurves.from_method(equation=text, method=method, random_state=0, threads=1, **kw).fit(duffing_20db).model_
         for k in ("f1", "f2"):
             np.testing.assert_allclose(b.curves[k](z), a.curves[k](z), rtol=0, atol=1e-9)
         assert b.loss == pytest.approx(a.loss, rel=1e-9)
@@ -179,7 +179,7 @@ def test_separable_equation_gives_the_same_fit_as_the_separable_family(duffing_2
 
 def test_equation_with_scalar_recovers_linear_damping(duffing_20db, tmp_path):
     """x'' + a1*x' + f2(x) = F on Duffing: a1 = delta = 0.3 and f2 = -x + x^3."""
-    model = CharacteristicCurves(equation="x'' + a1*x' + f2(x) = F", method="poly-cc",
+    model = CharacteristicCurves.from_method(equation="x'' + a1*x' + f2(x) = F", method="poly-cc",
                                  options={"degree": 5}).fit(duffing_20db).model_
     assert model.info["scalars"]["a1"] == pytest.approx(0.3, abs=0.01)
     x = np.linspace(*model.curves["f2"].domain, 200)
@@ -188,24 +188,24 @@ def test_equation_with_scalar_recovers_linear_damping(duffing_20db, tmp_path):
     back = load_model(tmp_path / "m")
     assert back.info["scalars"] == model.info["scalars"]
     np.testing.assert_array_equal(back.force_residual(duffing_20db), model.force_residual(duffing_20db))
-    nn = CharacteristicCurves(equation="x'' + a1*x' + f2(x) = F", method="nn-cc", threads=1).fit(duffing_20db).model_
+    nn = CharacteristicCurves.from_method(equation="x'' + a1*x' + f2(x) = F", method="nn-cc", threads=1).fit(duffing_20db).model_
     assert nn.info["scalars"]["a1"] == pytest.approx(0.3, abs=0.01)
     assert nn.result_dict()["scalars"]["a1"] == nn.info["scalars"]["a1"]
 
 
 def test_fit_refuses_scalar_that_trades_with_curve_constants(duffing_20db):
-    est = CharacteristicCurves(equation="x'' + f1(x') + f2(x) + a1 = F", method="poly-cc")
+    est = CharacteristicCurves.from_method(equation="x'' + f1(x') + f2(x) + a1 = F", method="poly-cc")
     with pytest.raises(IdentifiabilityError, match="scalar a1"):
         est.fit(duffing_20db)
     # with odd curves a1 is the record's offset, and it is identifiable (Duffing: 0)
-    model = CharacteristicCurves(equation="x'' + f1(x') + f2(x) + a1 = F", method="poly-cc",
+    model = CharacteristicCurves.from_method(equation="x'' + f1(x') + f2(x) + a1 = F", method="poly-cc",
                                  symmetry="odd").fit(duffing_20db).model_
     assert abs(model.info["scalars"]["a1"]) < 0.01
 
 
 def test_separable_only_methods_say_which_families_they_support(duffing_20db):
     with pytest.raises(ConfigError, match="supports the separable family only.*nn-cc"):
-        CharacteristicCurves(family="position-damping", method="sr-cc").fit(duffing_20db)
+        CharacteristicCurves.from_method(family="position-damping", method="sr-cc").fit(duffing_20db)
 
 
 def test_summary_names_a_user_written_equation_and_a_family(tmp_path, capsys):

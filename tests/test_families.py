@@ -48,7 +48,7 @@ def two_dof():
 def _fit(system, record, method, **kw):
     if method == "parametric":  # no default basis: a cubic per curve, given explicitly
         kw.setdefault("basis", DEFAULT_GENERAL_BASIS)
-    return CharacteristicCurves(family=system.family, method=method, random_state=0, threads=1, **kw).fit(record).model_
+    return CharacteristicCurves.from_method(family=system.family, method=method, random_state=0, threads=1, **kw).fit(record).model_
 
 
 #: (f1, f2) normalised-RMSE bounds per method on the 25 dB van der Pol record. Measured (issue 25) over
@@ -93,7 +93,7 @@ def test_even_prior_on_the_damping_curve_fits_as_well_as_unconstrained(vdp):
 def test_even_prior_in_a_user_equation_with_scalars(vdp):
     """An even curve next to unknown scalars (constant-argument terms of the same batched problem)."""
     s, _, noisy = vdp
-    model = CharacteristicCurves(family="custom", equation="x'' + f1(x)*x' + a1*x + a2*x**3 = F",
+    model = CharacteristicCurves.from_method(family="custom", equation="x'' + f1(x)*x' + a1*x + a2*x**3 = F",
                                  method="nn-cc+sym", symmetry="f1=even", random_state=0, threads=1).fit(noisy).model_
     assert nrmse(model.curves["f1"], s.f1) <= 0.015  # measured 0.62 %
     assert model.info["scalars"]["a1"] == pytest.approx(1.0, abs=0.02)  # measured 0.995
@@ -162,7 +162,7 @@ def test_the_quadratic_test_does_not_mistake_duffings_cubic_for_one():
     s = get_system("duffing")
     quick = PRESETS["default"].replace(n_starts=1, adam_steps=0, lm_max_iter=2)
     for record in (corrupt(s.simulate(), 20.0, seed=0), corrupt(s.simulate(), 30.0, on="state", seed=0)):
-        model = CharacteristicCurves(method="nn-cc", preset=quick, objective="equation-error", random_state=0,
+        model = CharacteristicCurves.from_method(method="nn-cc", preset=quick, objective="equation-error", random_state=0,
                                      threads=1).fit(record).model_
         assert model.curves["f2"].spec.powers == (3,)
         assert 2 not in model.curves["f1"].spec.powers
@@ -207,7 +207,7 @@ def test_two_dof_model_saves_and_loads(two_dof, tmp_path):
 
 def test_post_sr_distils_position_damping_curves(vdp):
     s, clean, _ = vdp
-    model = CharacteristicCurves(family="position-damping", method="nn-cc+post-sr", threads=1,
+    model = CharacteristicCurves.from_method(family="position-damping", method="nn-cc+post-sr", threads=1,
                                  sr_options={"generations": 20}).fit(clean).model_
     assert model.is_symbolic
     errs = {k: nrmse(c, s.true_curves()[k]) for k, c in model.curves.items()}
@@ -216,7 +216,7 @@ def test_post_sr_distils_position_damping_curves(vdp):
 
 def test_multi_dof_record_checks(two_dof):
     s, clean, _ = two_dof
-    cc = CharacteristicCurves(family="two-dof", method="parametric", basis=DEFAULT_GENERAL_BASIS)
+    cc = CharacteristicCurves.from_method(family="two-dof", method="parametric", basis=DEFAULT_GENERAL_BASIS)
     with pytest.raises(DataError, match="multi-DOF record"):
         cc.fit(get_system("duffing").simulate())
     together = clean.replace(states={"x1": clean.states["x1"], "x2": clean.states["x1"]},
@@ -280,13 +280,13 @@ def test_cli_two_dof_and_equation(tmp_path, capsys):
 
 def test_first_order_uses_given_velocity_alone(first_order):
     s, clean, _ = first_order
-    model = CharacteristicCurves(family="first-order", method="parametric", derivatives="given",
+    model = CharacteristicCurves.from_method(family="first-order", method="parametric", differentiator="given",
                                  basis=DEFAULT_GENERAL_BASIS).fit(
         clean.replace(a=None)).model_  # x' is all a first-order template needs
     z = np.linspace(-1.2, 1.2, 50)
     np.testing.assert_allclose(model.curves["f1"](z), s.f1(z), atol=1e-9)
     np.testing.assert_allclose(model.curves["f2"](z), s.f2(z), atol=1e-9)
     with pytest.raises(DataError, match="--derivatives given needs"):
-        CharacteristicCurves(family="position-damping", method="parametric", derivatives="given",
+        CharacteristicCurves.from_method(family="position-damping", method="parametric", differentiator="given",
                              basis=DEFAULT_GENERAL_BASIS).fit(
             clean.replace(a=None))

@@ -102,7 +102,7 @@ def test_batched_fits_equal_separate_fits(duffing):
     _, clean = duffing
     trajs = [corrupt(clean, 20, seed=s) for s in (3, 4)]
     preset = PRESETS["default"].replace(n_starts=2, adam_steps=50, lm_max_iter=20)
-    est = CharacteristicCurves(method="nn-cc+sym", preset=preset, threads=1)
+    est = CharacteristicCurves.from_method(method="nn-cc+sym", preset=preset, threads=1)
     batch = est.fit_many(trajs, seeds=[11, 12])
     single = [est.fit_many([tr], seeds=[s])[0] for tr, s in zip(trajs, (11, 12))]
     z = np.linspace(-0.9, 0.9, 33)
@@ -181,7 +181,7 @@ def test_jump_layout_is_decided_per_record_in_a_batch(duffing):
     system, clean = duffing
     job = [j for j in Sweep(systems=("duffing",), methods=("nn-cc+sym",), snr_db=(29.0,), realizations=(3,)).jobs()][0]
     recs = [corrupt(clean, 30, seed=1), corrupt(clean, job.snr_db, seed=job.noise_seed)]
-    models = CharacteristicCurves(method="nn-cc+sym", threads=1).fit_many(recs, seeds=[1, 2])
+    models = CharacteristicCurves.from_method(method="nn-cc+sym", threads=1).fit_many(recs, seeds=[1, 2])
     assert not models[0].curves["f1"].spec.jump and models[1].curves["f1"].spec.jump
     for m in models:
         assert np.isfinite(m.curves["f1"](np.linspace(-1, 1, 11))).all()
@@ -328,13 +328,13 @@ def test_data_errors_name_the_fix(duffing_20db):
         cc.fit(short, method="nn-cc")
     bare = duffing_20db.replace(v=None, a=None)
     with pytest.raises(DataError, match="--derivatives given needs v and a"):
-        cc.fit(bare, method="nn-cc", derivatives="given")
+        cc.fit(bare, method="nn-cc", differentiator="given")
 
 
 def test_estimated_derivatives_path_runs(duffing):
     system, clean = duffing
     noisy_x = corrupt(clean, 40, on="state", seed=0)
-    model = cc.fit(noisy_x, method="parametric", basis="f1=z; f2=z, z**3", derivatives="savgol")
+    model = cc.fit(noisy_x, method="parametric", basis="f1=z; f2=z, z**3", differentiator="savgol")
     errs = curve_errors(model, system.true_curves())
     assert errs["f1"] < 0.05 and errs["f2"] < 0.08, errs
 
@@ -352,12 +352,12 @@ def test_curve_rmse_alignment():
 
 
 def test_estimator_follows_the_sklearn_contract():
-    est = CharacteristicCurves(method="nn-cc", random_state=3)
+    est = CharacteristicCurves.from_method(method="nn-cc", random_state=3)
     params = est.get_params()
-    assert params["method"] == "nn-cc" and params["random_state"] == 3
-    est.set_params(method="parametric", basis="f1=z; f2=z, z**3")
-    assert est.method == "parametric"
-    with pytest.raises(ConfigError, match="unknown parameter"):
+    assert params["method__name"] == "nn-cc" and params["random_state"] == 3
+    est.set_params(method__name="parametric", method__basis="f1=z; f2=z, z**3")
+    assert est.method_name() == "parametric" and est.method.basis == "f1=z; f2=z, z**3"
+    with pytest.raises(ConfigError, match="CharacteristicCurves has no parameter .colour.; valid: template, method, differentiator"):
         est.set_params(colour="red")
     from charcurves import NotFittedError
 
@@ -451,9 +451,9 @@ def test_true_sticking_is_still_found_with_estimated_derivatives():
 
 def test_jump_none_leaves_no_sample_out_as_sticking():
     record = get_system("stick-slip").simulate()
-    est = CharacteristicCurves(method="poly-cc", threads=1)
+    est = CharacteristicCurves.from_method(method="poly-cc", threads=1)
     assert est.fit(record).model_.info["n_sticking_samples"] == 372
-    assert CharacteristicCurves(method="poly-cc", jump="none", threads=1).fit(record).model_.info[
+    assert CharacteristicCurves.from_method(method="poly-cc", jump="none", threads=1).fit(record).model_.info[
         "n_sticking_samples"] == 0
 
 
@@ -464,6 +464,6 @@ def test_a_learned_jump_is_never_negative():
     -0.590); stick-slip's jump unchanged (0.8109 at 20 dB, true mu N 0.801; see the stick-slip
     tests above)."""
     record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 25, seed=0)
-    model = CharacteristicCurves(method="nn-cc+sym", jump="f1", threads=1).fit(record).model_
+    model = CharacteristicCurves.from_method(method="nn-cc+sym", jump="f1", threads=1).fit(record).model_
     height = model.curves["f1"].components()["jump_height"]
     assert 0.0 <= height < 1e-6

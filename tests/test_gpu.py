@@ -36,7 +36,7 @@ def test_cuda_and_cpu_curves_agree(records, method):
     system, recs = records
     fits = {}
     for device in ("cpu", "cuda"):
-        fits[device] = CharacteristicCurves(method=method, device=device, threads=1).fit_many(recs, seeds=[0, 1])
+        fits[device] = CharacteristicCurves.from_method(method=method, device=device, threads=1).fit_many(recs, seeds=[0, 1])
     for cpu, gpu in zip(fits["cpu"], fits["cuda"]):
         for name in ("f1", "f2"):
             lo, hi = cpu.curves[name].domain

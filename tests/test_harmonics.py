@@ -24,7 +24,7 @@ def test_the_default_network_learns_the_turning_pendulum(turning_pendulum, tmp_p
     the frequency (measured 0.9999953 rad per rad), the sine and cosine enter as free linear terms and the
     network models the rest: f2 within 0.16 % normalised RMSE (measured 1.60e-3; flat, 1.0, before), the
     loss at the noise floor (measured 0.92 of it; 1658 before), no warning."""
-    model = CharacteristicCurves(method="nn-cc", threads=1, random_state=0).fit(turning_pendulum).model_
+    model = CharacteristicCurves.from_method(method="nn-cc", threads=1, random_state=0).fit(turning_pendulum).model_
     (w,) = model.info["settings"]["harmonic_terms"]["f2"]
     assert abs(w - 1.0) < 1e-4 and "f1" not in model.info["settings"]["harmonic_terms"]
     assert _nrmse(model.curves["f2"], lambda z: 9.81 * np.sin(z)) < 3.2e-3
@@ -51,7 +51,7 @@ def test_the_paper_records_get_no_harmonic(system):
 
 
 def test_a_duffing_fit_prints_the_empty_choice(duffing_20db):
-    model = CharacteristicCurves(method="nn-cc+sym", threads=1, random_state=0).fit(duffing_20db).model_
+    model = CharacteristicCurves.from_method(method="nn-cc+sym", threads=1, random_state=0).fit(duffing_20db).model_
     assert model.info["settings"]["harmonic_terms"] == {}
     assert all("harmonic" not in c.spec.slices() for c in model.curves.values())
 

@@ -36,7 +36,7 @@ def record():
 def saved(tmp_path_factory, record):
     """A neural model and a parametric model, saved once; tests work on copies."""
     root = tmp_path_factory.mktemp("models")
-    neural = cc.CharacteristicCurves(method="nn-cc+sym", threads=1).fit(record).model_
+    neural = cc.CharacteristicCurves.from_method(method="nn-cc+sym", threads=1).fit(record).model_
     neural.save(root / "neural")
     parametric = cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3", threads=1)
     parametric.save(root / "parametric")
@@ -371,7 +371,7 @@ def test_ctrl_c_in_a_chunked_fit_leaves_the_later_chunks_untrained(family):
             raise KeyboardInterrupt
 
     t0 = time.perf_counter()
-    est = cc.CharacteristicCurves(method="nn-cc", family=family, threads=1, progress=progress)
+    est = cc.CharacteristicCurves.from_method(method="nn-cc", family=family, threads=1, progress=progress)
     models = est.fit_many(records, seeds=range(10))
     assert calls == [("adam", 0), ("adam", 100)], "no training may run after the interrupt"
     assert time.perf_counter() - t0 < 60
@@ -407,7 +407,7 @@ def test_ctrl_c_during_post_sr_writes_the_finished_fit(tmp_path, record, monkeyp
     assert result["interrupted"] is True and result["info"]["post_sr"] == "skipped: interrupted"
     assert result["method"] == "sindy-cc+sym+post-sr"
     # the curves written are the SINDy-CC+sym fit itself: odd polynomials close to the truth
-    reference = cc.CharacteristicCurves(method="sindy-cc+sym", threads=1).fit(record).model_
+    reference = cc.CharacteristicCurves.from_method(method="sindy-cc+sym", threads=1).fit(record).model_
     model = load_model(out / "model")
     z = np.linspace(-1, 1, 21)
     for name in ("f1", "f2"):
@@ -434,7 +434,7 @@ def test_ctrl_c_during_output_error_refinement_writes_the_finished_fit(tmp_path,
                    "output-error refinement (result.json marked interrupted); rerun to compute them"]
     result = json.loads((out / "result.json").read_text())
     assert result["interrupted"] is True and result["info"]["refine"] == "skipped: interrupted"
-    reference = cc.CharacteristicCurves(method="parametric", basis="f1=z; f2=z, z**3", threads=1).fit(record).model_
+    reference = cc.CharacteristicCurves.from_method(method="parametric", basis="f1=z; f2=z, z**3", threads=1).fit(record).model_
     assert result["curves"] == reference.result_dict()["curves"]
 
 
@@ -458,7 +458,7 @@ def test_ctrl_c_during_band_refits_writes_the_main_fit(tmp_path, record, monkeyp
     result = json.loads((out / "result.json").read_text())
     assert result["interrupted"] is True and result["info"]["bands"] == "skipped: interrupted"
     assert "bands" not in result
-    reference = cc.CharacteristicCurves(method="poly-cc", threads=1).fit(record).model_.result_dict()
+    reference = cc.CharacteristicCurves.from_method(method="poly-cc", threads=1).fit(record).model_.result_dict()
     assert result["curves"] == reference["curves"]  # the finished main fit, bit for bit
 
 
@@ -482,7 +482,7 @@ def test_band_refits_stopped_by_ctrl_c_make_no_ensemble(record, monkeypatch):
 
     monkeypatch.setattr(gradient, "train", train_then_ctrl_c)
     with pytest.raises(KeyboardInterrupt):
-        fit_ensembles(cc.CharacteristicCurves(method="nn-cc", threads=1), [record], 3, kind="seeds")
+        fit_ensembles(cc.CharacteristicCurves.from_method(method="nn-cc", threads=1), [record], 3, kind="seeds")
     assert passes == [0, 1]
 
 

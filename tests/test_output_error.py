@@ -12,7 +12,7 @@ from charcurves import ConfigError, DataError
 from charcurves.curves import BasisFittedCurve, SymbolicFittedCurve
 from charcurves.data import Trajectory, estimate_derivatives
 from charcurves.fitting import FittedModel
-from charcurves.fitting import closed_form_text, refine_output_error
+from charcurves.fitting import cli_objective, closed_form_text, refine_output_error
 from charcurves.simulate import (
     estimate_initial_state,
     free_run_error,
@@ -151,14 +151,14 @@ def test_refinement_recovers_duffing_coefficients_from_a_poor_start(duffing_reco
 
 def test_api_refine_option_on_a_parametric_fit(duffing_record):
     traj, _ = duffing_record
-    kwargs = dict(method="parametric", basis="f1=z; f2=z, z**3", free_gain=True, derivatives="spectral")
-    plain = cc.fit(traj, refine="none", **kwargs)
-    refined = cc.fit(traj, refine="output-error", **kwargs)
+    kwargs = dict(method="parametric", basis="f1=z; f2=z, z**3", free_gain=True, differentiator="spectral")
+    plain = cc.fit(traj, objective="equation-error", **kwargs)
+    refined = cc.fit(traj, objective="output-error", **kwargs)
     short = traj.slice(slice(0, 600))
-    auto = cc.fit(short, refine="auto", **kwargs)  # free gain, closed forms, estimated derivatives: refined
+    auto = cc.fit(short, objective="auto", **kwargs)  # free gain, closed forms, estimated derivatives: refined
     assert auto.info["output_error"]["status"] == "ok"
     given = short.replace(v=np.gradient(short.x, DT), a=np.gradient(np.gradient(short.x, DT), DT))
-    assert "output_error" not in cc.fit(given, refine="auto", **{**kwargs, "derivatives": "auto"}).info
+    assert "output_error" not in cc.fit(given, objective="auto", **{**kwargs, "differentiator": "auto"}).info
     assert "output_error" not in plain.info
     assert isinstance(refined.curves["f2"], BasisFittedCurve) and refined.curves["f2"].basis == ["z", "z**3"]
     errs_plain = abs(plain.curves["f2"].coefficients[0] / TRUE["k1"] - 1)
@@ -181,7 +181,7 @@ def test_free_run_diagnostics_and_the_curves_figure_panel(tmp_path, duffing_reco
 
     traj, clean = duffing_record
     short = traj.slice(slice(0, 800))
-    kwargs = dict(method="parametric", basis="f1=z; f2=z, z**3", free_gain=True, derivatives="spectral")
+    kwargs = dict(method="parametric", basis="f1=z; f2=z, z**3", free_gain=True, differentiator="spectral")
     refined = cc.fit(short, objective="output-error", **kwargs)
     t, measured, free = free_run_diagnostics(refined, short)
     assert np.array_equal(measured, short.x) and t.shape == free.shape == (800,)
@@ -222,9 +222,9 @@ def test_refinement_options_are_checked(duffing_record):
     traj, _ = duffing_record
     model = symbolic_model("0.4*z", "z", 1.0)
     with pytest.raises(ConfigError, match="unknown refine option 'segments'; valid: hold, substeps"):
-        cc.fit(traj, method="parametric", basis="f1=z; f2=z, z**3", free_gain=True, refine="output-error", refine_options={"segments": 3})
+        cli_objective("output-error", None, {"segments": 3})  # the CLI's --refine-... settings
     with pytest.raises(ConfigError, match="unknown refine 'simulation'; choose one of none, output-error, auto"):
-        cc.fit(traj, method="parametric", basis="f1=z; f2=z, z**3", refine="simulation")
+        cli_objective(None, "simulation")
     with pytest.raises(ConfigError, match=r"segment_length \(--segment-length\) must be an integer from 16 to 100000"):
         refine_output_error(model, traj, segment_length=4)
     uneven = Trajectory(t=np.r_[np.arange(100) * DT, 100 * DT + 0.3 + np.arange(100) * DT], x=np.zeros(200),

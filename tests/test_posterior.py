@@ -67,7 +67,7 @@ def test_free_gain_interval_holds_the_true_gain_and_gives_the_mass(record):
 
 def test_hac_widens_the_band_where_estimated_derivatives_correlate_the_residual():
     rec = cc.corrupt(get_system("duffing").simulate(), 40, on="state", seed=1)
-    model = cc.CharacteristicCurves(method="poly-cc", objective="equation-error").fit(rec).model_
+    model = cc.CharacteristicCurves.from_method(method="poly-cc", objective="equation-error").fit(rec).model_
     post = model.posterior
     assert post.kind == "hac" and post.bandwidth > 10
     z = np.linspace(*model.curves["f2"].domain, 9)

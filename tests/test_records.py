@@ -38,7 +38,7 @@ def test_segments_never_cross_a_record_boundary():
 
 def test_joint_output_error_fit_shares_the_curves_and_keeps_states_per_record():
     a, b = _records()
-    est = cc.CharacteristicCurves(**PARAM, objective=cc.OutputError(segment_length=32, substeps=1, max_iter=10))
+    est = cc.CharacteristicCurves.from_method(**PARAM, objective=cc.OutputError(segment_length=32, substeps=1, max_iter=10))
     model = est.fit([a, b]).model_
     oe = model.info["output_error"]
     assert oe["status"] == "ok" and oe["records"] == 2
@@ -54,7 +54,7 @@ def test_joint_output_error_fit_shares_the_curves_and_keeps_states_per_record():
         assert 0 < r["free_run_rmse"] < 0.05
         assert 0 < r["loss_equation_error"] < 0.01
     # the curves' range is the union of the records' (their smoothed states, as a fit of each alone has)
-    alone = [cc.CharacteristicCurves(**PARAM, objective="equation-error").fit(r).model_ for r in (a, b)]
+    alone = [cc.CharacteristicCurves.from_method(**PARAM, objective="equation-error").fit(r).model_ for r in (a, b)]
     for name in ("f1", "f2"):
         lo = min(m.curves[name].domain[0] for m in alone)
         hi = max(m.curves[name].domain[1] for m in alone)
@@ -63,8 +63,8 @@ def test_joint_output_error_fit_shares_the_curves_and_keeps_states_per_record():
 
 def test_one_record_in_a_list_is_the_plain_fit():
     a, _ = _records()
-    one = cc.CharacteristicCurves(**PARAM, objective="equation-error").fit(a).model_
-    listed = cc.CharacteristicCurves(**PARAM, objective="equation-error").fit([a]).model_
+    one = cc.CharacteristicCurves.from_method(**PARAM, objective="equation-error").fit(a).model_
+    listed = cc.CharacteristicCurves.from_method(**PARAM, objective="equation-error").fit([a]).model_
     np.testing.assert_array_equal(one.curves["f2"].coefficients, listed.curves["f2"].coefficients)
     assert "records" not in listed.info
 
@@ -72,14 +72,14 @@ def test_one_record_in_a_list_is_the_plain_fit():
 def test_records_of_different_rates_fit_by_equation_error_and_output_error_says_why_not():
     a, _ = _records()
     b = cc.corrupt(get_system("duffing").simulate(t_end=12.0, n_points=601), 30, on="state", seed=1)  # dt 0.02
-    ee = cc.CharacteristicCurves(**PARAM, objective="equation-error").fit([a, b]).model_
+    ee = cc.CharacteristicCurves.from_method(**PARAM, objective="equation-error").fit([a, b]).model_
     assert [round(r["dt"], 4) for r in ee.info["records"]] == [0.04, 0.02]
     np.testing.assert_allclose(ee.curves["f2"].coefficients, [-1.0, 1.0], atol=0.05)
-    auto = cc.CharacteristicCurves(**PARAM).fit([a, b]).model_
+    auto = cc.CharacteristicCurves.from_method(**PARAM).fit([a, b]).model_
     assert auto.info["output_error"]["status"].startswith("not run: output error of several records needs one "
                                                           "sampling step, got 0.04, 0.02")
     with pytest.raises(DataError, match="needs one sampling step"):
-        cc.CharacteristicCurves(**PARAM, objective="output-error").fit([a, b])
+        cc.CharacteristicCurves.from_method(**PARAM, objective="output-error").fit([a, b])
 
 
 def test_record_set_splits_changes_back_per_record():
@@ -101,7 +101,7 @@ def test_bad_lists_are_refused_with_the_fix(records, error, message):
     if records is None:
         records, error = [a, np.zeros(3)], ConfigError
     with pytest.raises(error, match=message):
-        cc.CharacteristicCurves(**PARAM).fit(records)
+        cc.CharacteristicCurves.from_method(**PARAM).fit(records)
 
 
 def test_records_with_different_columns_are_refused():
@@ -109,7 +109,7 @@ def test_records_with_different_columns_are_refused():
     clean = get_system("duffing").simulate(t_end=12.0, n_points=301)  # has v and a columns
     with pytest.raises(DataError, match=r"record 1 \(duffing\) has the columns x, F, v, a but record 0 "
                                         r"\(duffing\) has x, F; give every record the same columns"):
-        cc.CharacteristicCurves(**PARAM).fit([a, clean])
+        cc.CharacteristicCurves.from_method(**PARAM).fit([a, clean])
 
 
 def _csvs(tmp_path):
@@ -154,9 +154,9 @@ def test_three_amplitudes_joint_fit_covers_the_union_and_beats_each_record_outsi
     recs = [cc.corrupt(get_system("duffing", A=A).simulate(t_end=40.0, n_points=500), 30, seed=k)
             for k, A in enumerate((0.25, 0.5, 0.75))]
     kw = dict(method="poly-cc", options={"degree": 3})
-    joint = cc.CharacteristicCurves(**kw).fit(recs).model_
-    pooled = cc.CharacteristicCurves(**PARAM).fit(recs).model_
-    alone = [cc.CharacteristicCurves(**kw).fit(r).model_ for r in recs]
+    joint = cc.CharacteristicCurves.from_method(**kw).fit(recs).model_
+    pooled = cc.CharacteristicCurves.from_method(**PARAM).fit(recs).model_
+    alone = [cc.CharacteristicCurves.from_method(**kw).fit(r).model_ for r in recs]
 
     def rmse(curve, name, z):
         return float(np.sqrt(np.mean((curve(z) - truth[name](z)) ** 2)))

@@ -163,7 +163,7 @@ def test_select_first_order_runs_all_three_loops_and_the_outer_loop_catches_a_wr
     assert max(outer["figures"]["normalised_rmse"]) < 0.05  # measured 0.010 and 0.023
     # the same loop on models whose resistance f2(x) is halved: separated within 10 % of the record
     halves = split_record(rec)
-    est = CharacteristicCurves(family="first-order", method="poly-cc", random_state=0)
+    est = CharacteristicCurves.from_method(family="first-order", method="poly-cc", random_state=0)
     wrong = [Ensemble(point=_with_scaled_curves(est.fit(h).model_, {"f2": 0.5}), members=[], record=h,
                       kind="seeds") for h in halves]
     bad = outer_loop(wrong)
@@ -175,7 +175,7 @@ def test_outer_loop_two_dof_follows_held_out_records_and_rejects_a_self_exciting
     starts = [{}, {"x10": -0.4, "x20": 0.6, "A1": 0.8, "A2": 0.9}]  # other initial states and forcings
     recs = [corrupt_forces(get_system("two-dof", **kw).simulate(t_end=50.0, n_points=1000), 25, seed=k)
             for k, kw in enumerate(starts)]
-    est = CharacteristicCurves(family="two-dof", method="poly-cc", random_state=0)
+    est = CharacteristicCurves.from_method(family="two-dof", method="poly-cc", random_state=0)
     models = [est.fit(r).model_ for r in recs]
     good = outer_loop([Ensemble(point=m, members=[], record=r, kind="seeds") for m, r in zip(models, recs)])
     assert good.passed and good.statistic == 1.0  # both states within 10 % of their range throughout
@@ -192,7 +192,7 @@ def test_bootstrap_of_two_dof_records_flips_each_equations_residual_with_one_sig
     from charcurves.selection import bootstrap_records
 
     rec = corrupt_forces(get_system("two-dof").simulate(t_end=50.0, n_points=1000), 25, seed=0)
-    model = CharacteristicCurves(family="two-dof", method="poly-cc", random_state=0).fit(rec).model_
+    model = CharacteristicCurves.from_method(family="two-dof", method="poly-cc", random_state=0).fit(rec).model_
     r = model.force_residual(rec)
     assert r.shape == (1000, 2)
     boot = bootstrap_records(rec, model, 3, random_state=5)

@@ -20,7 +20,7 @@ CAUSES = ("curve capacity", "wrong family or missing term", "derivative estimati
 def _fit(record, method, **kw):
     if method == "parametric":  # no default basis: the paper's Duffing basis, given explicitly
         kw.setdefault("basis", DEFAULT_BASIS)
-    return CharacteristicCurves(method=method, threads=1, **kw).fit(record).model_
+    return CharacteristicCurves.from_method(method=method, threads=1, **kw).fit(record).model_
 
 
 @pytest.fixture(scope="module")

@@ -57,8 +57,8 @@ def test_fit_with_post_sr_equals_the_two_fits_done_apart(duffing, base, preset, 
     system, clean = duffing
     records = [corrupt(clean, 20 if on == "force" else 40, on=on, seed=k) for k in range(2)]
     sr = {"generations": 5}
-    plain = CharacteristicCurves(method=base, preset=preset)
-    distilled = CharacteristicCurves(method=base + "+post-sr", preset=preset, sr_options=sr)
+    plain = CharacteristicCurves.from_method(method=base, preset=preset)
+    distilled = CharacteristicCurves.from_method(method=base + "+post-sr", preset=preset, sr_options=sr)
     apart = plain.fit_many(records, seeds=[3, 4]), distilled.fit_many(records, seeds=[3, 4])
     shared = fit_with_post_sr(plain, distilled, records, seeds=[3, 4])
     z = np.linspace(-1.5, 1.5, 301)
@@ -91,8 +91,8 @@ def test_post_sr_of_a_measured_record_distils_the_output_error_curves():
                                 noise_on="state").jobs())
     system = get_system("duffing")
     record = corrupt(system.simulate(job.t_end, job.n_points), 40, on="state", seed=job.noise_seed)
-    plain, closed = fit_with_post_sr(CharacteristicCurves(method="nn-cc", threads=1),
-                                     CharacteristicCurves(method="nn-cc+post-sr", threads=1), [record],
+    plain, closed = fit_with_post_sr(CharacteristicCurves.from_method(method="nn-cc", threads=1),
+                                     CharacteristicCurves.from_method(method="nn-cc+post-sr", threads=1), [record],
                                      seeds=[job.fit_seed])
     worst_plain = max(curve_errors(plain[0], system.true_curves()).values())
     errors = curve_errors(closed[0], system.true_curves())
@@ -106,12 +106,12 @@ def test_post_sr_of_a_measured_record_distils_the_output_error_curves():
 
 def test_fit_with_post_sr_refuses_estimators_that_are_not_a_pair():
     with pytest.raises(ConfigError, match="differ only in post-SR: the first must fit without post-SR"):
-        fit_with_post_sr(CharacteristicCurves(method="nn-cc+post-sr"), CharacteristicCurves(method="nn-cc"), [])
+        fit_with_post_sr(CharacteristicCurves.from_method(method="nn-cc+post-sr"), CharacteristicCurves.from_method(method="nn-cc"), [])
     with pytest.raises(ConfigError, match="fit different curves"):
-        fit_with_post_sr(CharacteristicCurves(method="nn-cc"), CharacteristicCurves(method="nn-cc+sym+post-sr"), [])
+        fit_with_post_sr(CharacteristicCurves.from_method(method="nn-cc"), CharacteristicCurves.from_method(method="nn-cc+sym+post-sr"), [])
     with pytest.raises(ConfigError, match="they differ in random_state"):
-        fit_with_post_sr(CharacteristicCurves(method="nn-cc"),
-                         CharacteristicCurves(method="nn-cc+post-sr", random_state=1), [])
+        fit_with_post_sr(CharacteristicCurves.from_method(method="nn-cc"),
+                         CharacteristicCurves.from_method(method="nn-cc+post-sr", random_state=1), [])
 
 
 def test_plan_units_puts_a_method_and_its_extension_on_the_same_records_together():
@@ -183,7 +183,7 @@ def test_a_search_asked_twice_runs_once_and_gives_the_same_result():
 # ---------------------------------------------------------------------------- stacked runs of one model
 def test_prepared_curves_evaluate_arrays_as_their_scalar_form(duffing):
     system, clean = duffing
-    nn = CharacteristicCurves(method="nn-cc+sym", preset=TINY).fit(corrupt(clean, 20, seed=0)).model_
+    nn = CharacteristicCurves.from_method(method="nn-cc+sym", preset=TINY).fit(corrupt(clean, 20, seed=0)).model_
     z = np.linspace(-3.0, 3.0, 97)  # beyond the tables, where the exact curve is used
     for model in (nn, symbolic_model("0.3*z", "z**3 - z")):
         for c in prepare_model_curves(model):

@@ -17,7 +17,7 @@ from charcurves.templates import ForwardModel, get_template
 def _case(name):
     if name == "two-dof":
         clean = get_system("two-dof").simulate(n_points=300, t_end=12)
-        return MultiTrajectory(clean.t, clean.states, clean.forces), cc.CharacteristicCurves(
+        return MultiTrajectory(clean.t, clean.states, clean.forces), cc.CharacteristicCurves.from_method(
             method="nn-cc", family="two-dof", objective="equation-error", threads=1)
     system, method, kw = {
         "separable": ("duffing", "nn-cc+sym", {"free_gain": True}),
@@ -26,7 +26,7 @@ def _case(name):
     }[name]
     s = get_system(system)
     rec = corrupt(s.simulate(n_points=300, t_end=12), 40, on="state", seed=0)
-    return rec, cc.CharacteristicCurves(method=method, family=s.family, objective="equation-error", threads=1, **kw)
+    return rec, cc.CharacteristicCurves.from_method(method=method, family=s.family, objective="equation-error", threads=1, **kw)
 
 
 @pytest.mark.parametrize("family", ["separable", "position-damping", "first-order", "two-dof"])
@@ -74,14 +74,14 @@ def measured_duffing():
 
 def test_a_template_output_error_cannot_simulate_falls_back_or_fails_in_one_line(measured_duffing):
     eq = "x'' + f1(x') + f2(x) + x''**3 = F"
-    model = cc.CharacteristicCurves(template=cc.Equation(eq), method="poly-cc").fit(measured_duffing).model_
+    model = cc.CharacteristicCurves.from_method(template=cc.Equation(eq), method="poly-cc").fit(measured_duffing).model_
     oe = model.info["output_error"]
     assert oe["status"].startswith("not run: equation 1: x'' enters with the coefficient 3*x''**2 + 1")
     assert model.info["objective"] == "equation-error (output error not possible)"
     assert model.info["warnings"] == ["output error: " + oe["status"]]
     with pytest.raises(cc.ConfigError, match=r"^equation 1: x'' enters with the coefficient 3\*x''\*\*2 \+ 1, which "
                                              r"depends on the data; output error needs constant coefficients$"):
-        cc.CharacteristicCurves(template=cc.Equation(eq), method="poly-cc",
+        cc.CharacteristicCurves.from_method(template=cc.Equation(eq), method="poly-cc",
                                 objective="output-error").fit(measured_duffing)
 
 
@@ -219,7 +219,7 @@ def test_output_error_settles_the_evidence_of_spare_terms_in_few_steps(monkeypat
     fits, default = {}, oe.EVIDENCE_SWEEPS
     for sweeps in (default, 0):
         monkeypatch.setattr(oe, "EVIDENCE_SWEEPS", sweeps)
-        fits[sweeps] = cc.CharacteristicCurves(method="poly-cc", objective="auto", random_state=0, threads=1).fit(rec).model_
+        fits[sweeps] = cc.CharacteristicCurves.from_method(method="poly-cc", objective="auto", random_state=0, threads=1).fit(rec).model_
     settled, stepwise = fits[default], fits[0]
     its = settled.info["output_error"]["iterations"], stepwise.info["output_error"]["iterations"]
     assert default > 0 and its[0] <= 0.5 * its[1], its

@@ -270,7 +270,7 @@ def stick_slip_nn_model(stick_slip):
 
     system, _ = stick_slip
     record = corrupt(system.simulate(), 20.0, on="force", seed=0)
-    return cc.CharacteristicCurves(method="nn-cc+sym", random_state=0, threads=1).fit(record).model_
+    return cc.CharacteristicCurves.from_method(method="nn-cc+sym", random_state=0, threads=1).fit(record).model_
 
 
 def test_fitted_stick_slip_nn_cc_sym_model_simulates_with_events(stick_slip, stick_slip_nn_model):

@@ -22,7 +22,7 @@ def fits():
     out = {}
     for method in ("sr-cc", "sr-cc+refit", "parametric"):
         basis = {"basis": DEFAULT_BASIS} if method == "parametric" else {}
-        model = CharacteristicCurves(method=method, sr_options={"generations": 20}, threads=1, **basis).fit(record).model_
+        model = CharacteristicCurves.from_method(method=method, sr_options={"generations": 20}, threads=1, **basis).fit(record).model_
         out[method] = (model, curve_errors(model, system.true_curves()))
     return out
 

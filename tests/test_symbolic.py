@@ -426,7 +426,7 @@ def test_the_turning_pendulum_distils_to_a_sine_by_default(turning_pendulum):
     its front, not the data guard) into 9.81 sin(x), and f1 into 0.2 x'."""
     from charcurves.fitting import CharacteristicCurves
 
-    model = CharacteristicCurves(method="parametric", basis="f1=z; f2=sin(z)", post_sr=True, threads=1,
+    model = CharacteristicCurves.from_method(method="parametric", basis="f1=z; f2=sin(z)", post_sr=True, threads=1,
                                  random_state=0).fit(turning_pendulum).model_
     meta = model.info["post_sr"]
     assert meta["f1"]["operators"] == ["add", "sub", "mul"]

@@ -98,7 +98,7 @@ def test_poly_cc_detection_on_duffing_and_on_a_quadratic_spring():
 
 
 def test_auto_symmetry_with_poly_cc_applies_and_reports_the_decision():
-    model = CharacteristicCurves(method="poly-cc", symmetry="auto").fit(quadratic_spring_record()).model_
+    model = CharacteristicCurves.from_method(method="poly-cc", symmetry="auto").fit(quadratic_spring_record()).model_
     auto = model.info["symmetry_auto"]
     assert auto["applied"] == {"f1": "odd", "f2": "none"} and auto["method"] == "poly-cc"
     doc = model.result_dict()
@@ -113,7 +113,7 @@ def test_auto_symmetry_with_poly_cc_applies_and_reports_the_decision():
 def test_auto_symmetry_refuses_a_method_without_priors():
     rec = get_system("duffing").simulate()
     with pytest.raises(ConfigError, match="--sym auto needs a method that takes a symmetry prior"):
-        CharacteristicCurves(method="sr", symmetry="auto").fit(rec)
+        CharacteristicCurves.from_method(method="sr", symmetry="auto").fit(rec)
 
 
 @pytest.mark.slow
@@ -134,7 +134,7 @@ def test_cli_sym_auto_proposes_odd_odd_on_duffing(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_sym_auto_imposes_no_symmetry_on_a_quadratic_spring():
-    model = CharacteristicCurves(method="nn-cc+sym", symmetry="auto").fit(quadratic_spring_record()).model_
+    model = CharacteristicCurves.from_method(method="nn-cc+sym", symmetry="auto").fit(quadratic_spring_record()).model_
     auto = model.info["symmetry_auto"]
     assert auto["applied"]["f2"] == "none"
     assert auto["tests"]["f2"]["odd_stat"] > 5 * PARITY_THRESHOLD
@@ -213,14 +213,14 @@ def test_a_plain_cli_fit_of_an_asymmetric_spring_imposes_no_odd_f2(tmp_path, cap
 
 def test_asked_priors_are_kept_and_named_and_the_self_check_names_them():
     record, _ = _asymmetric_spring()
-    est = CharacteristicCurves(method="poly-cc", symmetry="f1=odd,f2=odd")
+    est = CharacteristicCurves.from_method(method="poly-cc", symmetry="f1=odd,f2=odd")
     assert not est.tests_priors() and CharacteristicCurves().tests_priors()
     assert CharacteristicCurves().method_name() == "nn-cc"
-    assert CharacteristicCurves(symmetry="f2=odd").method_name() == "nn-cc+sym"
+    assert CharacteristicCurves.from_method(symmetry="f2=odd").method_name() == "nn-cc+sym"
     model = est.fit(record).model_
     assert model.info["priors"]["summary"] == "f1=odd, f2=odd (asked: symmetry f1=odd,f2=odd)"
     [warning] = [w for w in model.info["warnings"] if w.startswith("self-check:") and "Likely causes" in w]
     assert ("Likely causes, most likely first: (0) the parity prior imposed (f1=odd, f2=odd; asked: symmetry "
             "f1=odd,f2=odd) -- refit without it") in warning
-    sym = CharacteristicCurves(method="sindy-cc+sym").fit(corrupt(get_system("duffing").simulate(), 25, seed=0))
+    sym = CharacteristicCurves.from_method(method="sindy-cc+sym").fit(corrupt(get_system("duffing").simulate(), 25, seed=0))
     assert sym.model_.info["priors"]["summary"] == "f1=odd, f2=odd (from method sindy-cc+sym)"

@@ -57,6 +57,8 @@ _LAZY: dict[str, str | tuple[str, str]] = {
     "CharacteristicCurves": "charcurves.fitting",
     "EquationError": "charcurves.fitting",
     "OutputError": "charcurves.fitting",
+    "Auto": "charcurves.fitting",
+    "MethodPreset": "charcurves.fitting",
     "FittedModel": "charcurves.fitting",
     "fit": "charcurves.fitting",
     "load_model": "charcurves.fitting",

@@ -81,7 +81,7 @@ class NotFittedError(CharCurvesError, RuntimeError):
     --------
     >>> import charcurves as cc
     >>> try:
-    ...     cc.CharacteristicCurves(method="poly-cc").curves_
+    ...     cc.CharacteristicCurves.from_method(method="poly-cc").curves_
     ... except cc.NotFittedError as exc:
     ...     print(exc)
     this CharacteristicCurves is not fitted yet; call fit(trajectory) first

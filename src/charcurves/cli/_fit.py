@@ -50,15 +50,15 @@ def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_g
                   keep_sticking=False, truth=None, threads=None, device="cpu", figure=True, quiet=False, source=None,
                   sr_options=None, refine=None, refine_options=None, bands=None, bands_kind="bootstrap",
                   bands_level=0.95, equation=None, warnings=(), objective=None, report=False, snr=None):
-    from ..fitting import CharacteristicCurves
+    from ..fitting import CharacteristicCurves, cli_objective
 
-    est = CharacteristicCurves(
-        family=family, method=method, symmetry=sym, free_gain=free_gain, gauge=gauge, gain_on=gain_on, preset=preset,
-        derivatives=derivatives, jump=jump if jump in ("auto", "none", "") else [j for j in jump.split(",") if j.strip()],
+    est = CharacteristicCurves.from_method(
+        method, family=family, symmetry=sym, free_gain=free_gain, gauge=gauge, gain_on=gain_on, preset=preset,
+        differentiator=derivatives,
+        jump=jump if jump in ("auto", "none", "") else [j for j in jump.split(",") if j.strip()],
         basis=basis, sr_options=sr_options, exclude_sticking=not keep_sticking, random_state=seed,
-        threads=1 if threads is None else threads, device=device,
-        progress=_progress_printer(not quiet), refine=refine, refine_options=refine_options or None,
-        equation=equation, objective=objective or "auto", snr_db=snr,
+        threads=1 if threads is None else threads, device=device, progress=_progress_printer(not quiet),
+        objective=cli_objective(objective, refine, refine_options or None), equation=equation, snr_db=snr,
     )
     check_out_dir(out_dir)  # before the fit: a bad --out must not cost a long run
     # one writer at a time (a second fit into the same --out is refused); a second interrupt never

@@ -39,7 +39,7 @@ def run_select(a, *, say, check_out, fit=None) -> int:
                    for path in a.csv]
     report = select_family(records, families, method=a.method, n_members=a.members, snr_db=a.snr,
                            all_families=a.all, all_loops=a.all, random_state=a.seed,
-                           threads=1 if a.threads is None else a.threads, derivatives=a.derivatives,
+                           threads=1 if a.threads is None else a.threads, differentiator=a.derivatives,
                            progress=None if a.quiet else (lambda text: say(f"  {text}")), fit=fit)
     say(report.table())
     if a.out is not None:

@@ -26,11 +26,12 @@ from __future__ import annotations
 
 import abc
 import inspect
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
 from .._errors import ConfigError
+from .._params import Params
 from ._fitted import LinearFittedCurve
 from ._loadable import registered_curve, remember_curve
 
@@ -58,7 +59,7 @@ def normalise_symmetry(value, owner: str) -> str:
     return text
 
 
-class AbstractCurve(abc.ABC):
+class AbstractCurve(Params, abc.ABC):
     """A curve representation: the interface every fitter and objective of charcurves uses.
 
     Subclasses store their settings in ``__init__`` (named like the parameters, nothing
@@ -78,23 +79,6 @@ class AbstractCurve(abc.ABC):
     #: "neural" (trained by gradient), "linear" (least squares; also trainable by gradient) or
     #: "symbolic" (symbolic regression)
     kind: ClassVar[str] = ""
-
-    # ------------------------------------------------------------------ scikit-learn contract
-    @classmethod
-    def _param_names(cls) -> list[str]:
-        sig = inspect.signature(cls.__init__)
-        return [p.name for p in sig.parameters.values() if p.name != "self" and p.kind != p.VAR_KEYWORD]
-
-    def get_params(self, deep: bool = True) -> dict[str, Any]:
-        return {name: getattr(self, name) for name in self._param_names()}
-
-    def set_params(self, **params) -> AbstractCurve:
-        valid = self._param_names()
-        for key, value in params.items():
-            if key not in valid:
-                raise ConfigError(f"{type(self).__name__} has no parameter {key!r}; valid: {', '.join(valid)}")
-            setattr(self, key, value)
-        return self
 
     def __repr__(self) -> str:
         sig = inspect.signature(type(self).__init__)

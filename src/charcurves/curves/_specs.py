@@ -308,9 +308,6 @@ class Basis(LinearCurve):
             self._cache = cache
         return cache
 
-    def get_params(self, deep: bool = True):
-        return {"functions": self.functions}
-
     def scaling(self, z, preset=None):
         return 0.0, 1.0  # the functions are written in the curve's own argument
 

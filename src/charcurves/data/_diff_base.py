@@ -6,13 +6,13 @@ See :mod:`charcurves.data._differentiate` for the list of methods and their meas
 from __future__ import annotations
 
 import abc
-import inspect
 import math
 from typing import Any, ClassVar, final
 
 import numpy as np
 
 from .._errors import ConfigError, DataError
+from .._params import Params
 from ._trajectory import Trajectory
 
 # Relative tolerance on the time step for "uniform" sampling (same default as Trajectory).
@@ -55,7 +55,7 @@ def _positive_or_none(name: str, owner: str, value: Any, allow_zero: bool) -> fl
 
 
 # ---------------------------------------------------------------------------------- base
-class Differentiator(abc.ABC):
+class Differentiator(Params, abc.ABC):
     """Turns samples ``x(t)`` into a smoothed ``x̂`` and its derivatives ``x̂'`` and ``x̂''``.
 
     Call an instance on arrays, ``x_hat, v, a = diff(t, x)``, or give it to
@@ -103,10 +103,9 @@ class Differentiator(abc.ABC):
         """The method itself, on validated arrays."""
 
     # -------------------------------------------------------------- parameters
-    def get_params(self) -> dict[str, Any]:
-        """The constructor arguments, ``{name: value}``."""
-        sig = inspect.signature(type(self).__init__)
-        return {p: getattr(self, p) for p in sig.parameters if p != "self"}
+    def _params_changed(self) -> None:
+        """``set_params`` checks the new values as the constructor does (a ConfigError names a bad one)."""
+        type(self).__init__(self, **self.get_params(deep=False))  # type: ignore[misc]
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())

@@ -39,7 +39,7 @@ def run_real_benchmark(name: str, out_dir, *, data_dir=None, seed: int = 0, thre
     if max_samples is not None:
         est_rec = est_rec.slice(slice(0, int(max_samples)))
         tests = {k: v.slice(slice(0, int(max_samples))) for k, v in tests.items()}
-    est = estimator if estimator is not None else CharacteristicCurves(free_gain=True, random_state=seed,
+    est = estimator if estimator is not None else CharacteristicCurves.from_method(free_gain=True, random_state=seed,
                                                                        threads=threads)
     t0 = time.perf_counter()
     model = est.fit(est_rec).model_

@@ -196,8 +196,10 @@ def _estimator(job: Job, settings: RunSettings):
 
     kwargs = dict(job.fit_kwargs)
     kwargs.setdefault("threads", settings.torch_threads)
+    if "derivatives" in kwargs:  # the sweeps' stored name (part of each job's signature) of the differentiator
+        kwargs["differentiator"] = kwargs.pop("derivatives")
     preset = job.preset_obj if job.preset_obj is not None else job.preset
-    return CharacteristicCurves(method=job.method, preset=preset, **kwargs)
+    return CharacteristicCurves.from_method(job.method, preset=preset, **kwargs)
 
 
 def _is_neural(method: str) -> bool:

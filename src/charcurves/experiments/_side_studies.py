@@ -48,7 +48,9 @@ def _estimator(ctx: _Context, system: str, method: str, preset=None, **extra_opt
     opts = ctx.sweep.fit_options(system, method)
     opts.update(extra_opts)
     opts.setdefault("threads", 1)
-    return CharacteristicCurves(method=method, preset=preset if preset is not None else ctx.preset, **opts)
+    if "derivatives" in opts:  # the sweeps' stored name of the differentiator
+        opts["differentiator"] = opts.pop("derivatives")
+    return CharacteristicCurves.from_method(method, preset=preset if preset is not None else ctx.preset, **opts)
 
 
 def miw_study(ctx: _Context, extras: _Extras) -> None:

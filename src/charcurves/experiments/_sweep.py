@@ -128,7 +128,8 @@ class Sweep:
     variant : str or mapping
         System variant ("paper", "scripts"...), or ``{system: variant}``.
     options : mapping
-        ``CharacteristicCurves`` keyword arguments for every method (e.g. ``{"derivatives": "savgol"}``).
+        ``CharacteristicCurves.from_method`` keyword arguments for every method (e.g. ``{"differentiator": "savgol"}``;
+        ``derivatives`` is read as ``differentiator``).
     method_options : mapping
         Per-method keyword arguments, ``{method: {...}}``; they override ``options`` and the system defaults
         (:func:`default_fit_options`).
@@ -240,7 +241,7 @@ class Sweep:
         return p.to_dict()
 
     def fit_options(self, system: str, method: str) -> dict[str, Any]:
-        """The ``CharacteristicCurves`` keyword arguments one method gets on one system."""
+        """The ``CharacteristicCurves.from_method`` keyword arguments one method gets on one system."""
         from ..systems import get_system
 
         opts = default_fit_options(get_system(system, self.variant_of(system)), method)

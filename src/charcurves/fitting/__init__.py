@@ -6,8 +6,9 @@ the training presets from ``charcurves.train``), so ``from charcurves.fitting im
 Public API
 ----------
 CharacteristicCurves(template=..., differentiator=..., objective=..., post_sr=...)   the estimator
+CharacteristicCurves.from_method("nn-cc+sym", family=...), MethodPreset   the method presets
 fit(record, method="nn-cc+sym", ...)                       shortcut
-EquationError(), OutputError(...)                          objectives
+EquationError(), OutputError(...), Auto(...)               objectives
 FittedModel, load_model                                    fitted models and their files
 plot_curves, plot_model, model_html, curve_lines, ...      views of a fitted model (figures, text, HTML)
 METHODS, PRESETS, TrainingPreset                           method and training presets
@@ -51,6 +52,10 @@ from ..objectives import free_run_diagnostics as free_run_diagnostics
 from ..objectives import output_error_fit as output_error_fit
 from ..objectives import refine_output_error as refine_output_error
 from ..model import summary_lines as summary_lines
+from ._legacy import cli_objective as cli_objective
+from ._legacy import legacy_options as legacy_options
+from ._method_preset import MethodPreset as MethodPreset
+from ..objectives import Auto as Auto
 from ._pipeline import fit_with_post_sr as fit_with_post_sr
 from ._pipeline import raw_fit as raw_fit
 from ._records import RecordSet as RecordSet

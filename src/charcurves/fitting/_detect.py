@@ -4,6 +4,7 @@ settings when none is given."""
 from __future__ import annotations
 
 from ._estimator import CharacteristicCurves
+from ._legacy import legacy_options
 from ._symmetry import AUTO_MEMBERS, PARITY_THRESHOLD, detect_parity
 
 __all__ = ["detect_symmetry"]
@@ -47,6 +48,6 @@ def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, th
     ('odd', 'odd')
     """
     if estimator is None:
-        estimator = CharacteristicCurves(**estimator_params)
+        estimator = CharacteristicCurves.from_method(**legacy_options(estimator_params))
     return detect_parity(record, estimator, n_members=n_members, threshold=threshold, random_state=random_state,
                          method=method, objective=objective)

@@ -48,7 +48,7 @@ class Ensemble:
     >>> from charcurves.fitting import CharacteristicCurves, Ensemble, fit_ensemble
     >>> from charcurves.systems import get_system
     >>> record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
-    >>> ens = fit_ensemble(CharacteristicCurves(method="poly-cc"), record, 4)
+    >>> ens = fit_ensemble(CharacteristicCurves.from_method(method="poly-cc"), record, 4)
     >>> isinstance(ens, Ensemble), ens.kind, ens.curve_values("f2", [0.0, 1.0]).shape
     (True, 'bootstrap', (4, 2))
     """
@@ -177,7 +177,7 @@ def fit_ensemble(estimator, record, n: int = 8, *, kind: str = "bootstrap", rand
     >>> from charcurves.fitting import CharacteristicCurves, fit_ensemble
     >>> from charcurves.systems import get_system
     >>> record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
-    >>> ens = fit_ensemble(CharacteristicCurves(method="poly-cc"), record, 4)
+    >>> ens = fit_ensemble(CharacteristicCurves.from_method(method="poly-cc"), record, 4)
     >>> len(ens.members)
     4
     """
@@ -200,7 +200,7 @@ def fit_ensembles(estimator, records, n: int = 8, *, kind: str = "bootstrap",
     >>> from charcurves.systems import get_system
     >>> clean = get_system("duffing").simulate()
     >>> records = [corrupt(clean, 20, seed=s) for s in (0, 1)]
-    >>> ensembles = fit_ensembles(CharacteristicCurves(method="poly-cc"), records, 3, kind="seeds")
+    >>> ensembles = fit_ensembles(CharacteristicCurves.from_method(method="poly-cc"), records, 3, kind="seeds")
     >>> [len(e.members) for e in ensembles]
     [3, 3]
     """
@@ -263,14 +263,13 @@ def _beyond_raw(estimator, records) -> bool:
 
 def _member_estimator(estimator, point):
     """The estimator for members: same settings, the point fit's jump decision, given derivatives."""
-    params = estimator.get_params()
+    params = estimator.flat_params()
     if params.get("jump") == "auto":
         # members keep the point fit's curve layout (a jump decided on the record, not per member)
         jumps = [name for name, c in point.curves.items() if getattr(getattr(c, "spec", None), "jump", False)]
         params["jump"] = jumps or "none"
-    params["derivatives"] = None  # the prepared record carries the derivatives the point fit used
-    params["differentiator"] = "auto"
+    params["differentiator"] = "auto"  # the prepared record carries the derivatives the point fit used
     params["progress"] = None
     if isinstance(params.get("symmetry"), str) and params["symmetry"].strip().lower() == "auto":
         params["symmetry"] = None  # members of an auto fit are drawn by the caller with resolved priors
-    return type(estimator)(**params)
+    return type(estimator).from_method(**params)

@@ -1,23 +1,32 @@
 """The estimator users meet: a template with a representation per curve, a differentiator, an
-objective and optional post-SR, composed as objects (or named by one of the paper's methods)."""
+objective and optional post-SR, composed as objects (or built from one of the paper's methods by
+:meth:`CharacteristicCurves.from_method`)."""
 
 from __future__ import annotations
 
 import copy
 import inspect
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .._bounds import check_number
 from .._errors import ConfigError, NotFittedError
+from .._params import Params
+from ._legacy import from_legacy, legacy_options
+from ._method_preset import MethodPreset
 from ._methods import METHODS, check_method_options, method_curve, parse_basis_option, parse_symmetry
 from ..model import FittedModel
-from ..train import get_preset, torch_threads
+from ..train import TrainingPreset, get_preset, torch_threads
 from ._pipeline import run_pipeline
 from ._priors import name_prior_in_warnings, priors_record
 from ._symmetry import fit_many_auto
+
+if TYPE_CHECKING:
+    from ..data import Differentiator
+    from ..templates import Template
+    from ..objectives import Auto, EquationError, OutputError
 
 __all__ = ["CharacteristicCurves", "fit", "MAX_SEED"]
 
@@ -25,65 +34,43 @@ __all__ = ["CharacteristicCurves", "fit", "MAX_SEED"]
 MAX_SEED = 2**32 - 1
 
 
-class CharacteristicCurves:
+class CharacteristicCurves(Params):
     """Identify the characteristic curves of a template from measured records.
 
-    Compose the parts as objects (the recommended way)::
+    Compose the parts as objects::
 
         CharacteristicCurves(template=Separable(f1=Polynomial(degree=3, symmetry="odd"), f2=Neural(symmetry="odd")),
                              differentiator=SavitzkyGolay(window=31, order=3), objective="auto")
 
-    or name one of the paper's twelve methods, which builds the same objects
-    (``CharacteristicCurves(method="nn-cc+sym")``; see :data:`METHODS`).
+    or build them from one of the paper's twelve methods with :meth:`from_method`
+    (``CharacteristicCurves.from_method("nn-cc+sym", family="two-dof")``; see :data:`METHODS`).
 
     Parameters
     ----------
     template : Template, optional
-        A template object (:class:`~charcurves.templates.Separable`, ``PositionDamping``,
-        ``FirstOrder``, ``TwoDOF``, ``Equation``) with a representation per curve; curves left
-        unset take the ``method`` preset's representation (``Neural()`` without a method). None:
-        the template of ``family``/``equation`` with the method's curves.
-    method : str, optional
-        One of :data:`METHODS`. Default, without a template: NN-CC whose parity priors are those
-        the record supports -- each curve's parity is tested first (poly-cc fits of a bootstrap
-        ensemble, :func:`~charcurves.fitting.detect_symmetry`, about 0.1 s) and odd/even imposed
-        only where one parity fits and the other does not (``info["priors"]`` says what and why);
-        with ``symmetry`` given, "nn-cc+sym" with those parities.
+        A template object (``Separable``, ``PositionDamping``, ``FirstOrder``, ``TwoDOF``, ``Equation``) with a representation per curve; unset curves take the method's.
+    method : MethodPreset, optional
+        The method preset and its shorthands (family, priors, basis...); :meth:`from_method` builds it. None: the default, NN-CC with the parity priors the record supports.
     differentiator : str or Differentiator, optional
-        How derivatives the template needs are obtained: "auto" (default: the record's own
-        derivative columns when present, else estimated), "given", a name ("spectral", "savgol",
-        "spline", "fd", ...) or an instance (``SavitzkyGolay(window=31, order=3)``).
-    objective : {"auto", "equation-error", "output-error"} or EquationError/OutputError
-        "auto" (default): equation error; then, on a record whose derivatives were estimated (a
-        measured record: the state is noisy), output error -- the curves are refitted to the
-        free-run simulation of the record (see :class:`~charcurves.fitting.OutputError`). The
-        paper's preset keeps equation error.
+        How the template's derivatives are obtained: "auto" (None: the record's own columns, else estimated), "given", a name ("spectral", "savgol", ...) or an instance.
+    objective : str or EquationError or OutputError or Auto
+        "auto" (default: equation error, then output error on records whose derivatives were estimated), "equation-error", "output-error" or an objective object.
     post_sr : bool, optional
-        Distil the fitted curves into closed forms (symbolic regression); default: the method's.
-    preset : {"default", "paper"} or TrainingPreset
-        Training settings of gradient-trained curves.
+        Distil the fitted curves into closed forms (symbolic regression); None: the method's choice.
+    preset : str or TrainingPreset
+        Training settings of gradient-trained curves: "default", "paper" or a TrainingPreset.
     random_state : int
         Seed of every random choice (0 to 2**32 - 1).
     threads : int, optional
-        Torch threads during the whole fit: warm start, training, output error (None leaves
-        torch's setting).
-    device : {"cpu", "cuda"}
+        Torch threads during the whole fit (None leaves torch's setting).
+    device : str
+        Where neural curves train: "cpu" or "cuda".
     progress : callable, optional
         ``progress(phase, step, total, loss)`` during training.
-    family, equation, symmetry, free_gain, gain, gauge, gain_on, jump, basis, options, sr_options,
-    hidden, activation, exclude_sticking
-        Shorthands of the method presets: the family or a user-written equation; parity priors
-        ("f1=odd,f2=odd", a dict, or "auto": tested on unconstrained curves); the input gain; the
-        curves anchored at 0; a learned jump at 0 ("auto", "none", or curve names); the
-        Parametric basis ("f1=z; f2=z, z**3"); representation options ({"degree": 10}); symbolic
-        regression settings; the network shape; whether sticking samples are left out.
-    derivatives, refine, refine_options
-        Older names of ``differentiator`` and the objective ("none" = equation error,
-        "output-error", "auto"; ``refine_options`` = :class:`OutputError` settings).
     snr_db : float, optional
-        Known signal-to-noise ratio of the forcing in dB, for the self-check (the loss of each
-        equation against the noise floor, ``model.info["self_check"]``); default: the floor is
-        estimated from the record.
+        Known signal-to-noise ratio of the forcing in dB for the self-check (None: the noise floor is estimated).
+    **legacy : Any
+        The older spellings (``method="nn-cc"``, ``family=``, ``symmetry=``, ``derivatives=``, ``refine=``...): accepted for one release with a FutureWarning; use :meth:`from_method`.
 
     Examples
     --------
@@ -91,19 +78,18 @@ class CharacteristicCurves:
     >>> from charcurves.fitting import CharacteristicCurves
     >>> from charcurves.systems import get_system
     >>> traj = corrupt(get_system("duffing").simulate(), 20, seed=0)
-    >>> model = CharacteristicCurves(method="parametric", basis="f1=z; f2=z, z**3").fit(traj).model_
+    >>> model = CharacteristicCurves.from_method("parametric", basis="f1=z; f2=z, z**3").fit(traj).model_
     >>> round(model.curves["f1"].components().get("linear_slope", 0.3), 1)
     0.3
     """
 
-    def __init__(self, template=None, *, method: str | None = None, differentiator=None, objective="auto",
-                 post_sr: bool | None = None, preset="default", random_state: int = 0, threads: int | None = None,
-                 device: str = "cpu", progress: Callable | None = None, family: str = "separable",
-                 equation: str | None = None, symmetry=None, free_gain: bool = False, gain: float = 1.0,
-                 gauge=None, gain_on: str = "force", jump="auto", basis=None, options: dict | None = None,
-                 sr_options: dict | None = None, hidden: Sequence[int] | None = None, activation: str | None = None,
-                 exclude_sticking: bool = True, derivatives: str | None = None, refine: str | None = None,
-                 refine_options: dict | None = None, snr_db: float | None = None):
+    def __init__(self, template: Template | None = None, *, method: MethodPreset | None = None,
+                 differentiator: str | Differentiator | None = None,
+                 objective: str | EquationError | OutputError | Auto = "auto", post_sr: bool | None = None, preset: str | TrainingPreset = "default",
+                 random_state: int = 0, threads: int | None = None, device: str = "cpu",
+                 progress: Callable | None = None, snr_db: float | None = None, **legacy: Any):
+        if legacy or isinstance(method, str):  # the older spelling: one FutureWarning, then the same objects
+            method, differentiator, objective = from_legacy(method, differentiator, objective, legacy)
         self.template = template
         self.method = method
         self.differentiator = differentiator
@@ -114,52 +100,98 @@ class CharacteristicCurves:
         self.threads = threads
         self.device = device
         self.progress = progress
-        self.family = family
-        self.equation = equation
-        self.symmetry = symmetry
-        self.free_gain = free_gain
-        self.gain = gain
-        self.gauge = gauge
-        self.gain_on = gain_on
-        self.jump = jump
-        self.basis = basis
-        self.options = options
-        self.sr_options = sr_options
-        self.hidden = hidden
-        self.activation = activation
-        self.exclude_sticking = exclude_sticking
-        self.derivatives = derivatives
-        self.refine = refine
-        self.refine_options = refine_options
         self.snr_db = snr_db
 
-    # ------------------------------------------------------------------ scikit-learn contract
     @classmethod
-    def _param_names(cls) -> list[str]:
-        return [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
+    def from_method(cls, method: str | None = None, *, template: Template | None = None, family: str = "separable",
+                    equation: str | None = None, symmetry: str | dict | None = None, free_gain: bool = False,
+                    gain: float = 1.0, gauge: str | Sequence[str] | None = None, gain_on: str = "force",
+                    jump: str | Sequence[str] = "auto",
+                    basis: str | dict | list | None = None, options: dict | None = None, degree: int | None = None,
+                    hidden: Sequence[int] | None = None, activation: str | None = None,
+                    exclude_sticking: bool = True, sr_options: dict | None = None,
+                    differentiator: str | Differentiator | None = None,
+                    objective: str | EquationError | OutputError | Auto = "auto", post_sr: bool | None = None, preset: str | TrainingPreset = "default",
+                    random_state: int = 0, threads: int | None = None, device: str = "cpu",
+                    progress: Callable | None = None, snr_db: float | None = None) -> CharacteristicCurves:
+        """The estimator of one of the paper's methods, its shorthands turned into a :class:`MethodPreset`.
 
-    def get_params(self, deep: bool = True) -> dict[str, Any]:
-        out = {n: getattr(self, n) for n in self._param_names()}
-        if deep and self.template is not None and hasattr(self.template, "get_params"):
-            out.update({f"template__{k}": v for k, v in self.template.get_params(deep=True).items()})
-        return out
+        A shorthand the method would ignore (``degree=`` with a neural method, ``basis=`` outside
+        "parametric", curve settings where ``template`` sets every curve) is a ConfigError naming it.
 
-    def set_params(self, **params) -> CharacteristicCurves:
-        valid = self._param_names()
-        nested = {}
-        for k, v in params.items():
-            head, sep, rest = k.partition("__")
-            if head not in valid:
-                raise ConfigError(f"unknown parameter {k!r}; valid: {', '.join(valid)}")
-            if sep:
-                nested[rest] = v
-            else:
-                setattr(self, k, v)
-        if nested:
-            if self.template is None or not hasattr(self.template, "set_params"):
-                raise ConfigError("template__... parameters need a template object; give template=Separable(...) first")
-            self.template.set_params(**nested)
-        return self
+        Parameters
+        ----------
+        method : str, optional
+            One of :data:`METHODS`; None: NN-CC whose parity priors are those the record supports (each curve's parity is tested first).
+        template : Template, optional
+            A template object; its unset curves take the method's representation.
+        family : str
+            The template family without a template: "separable", "first-order", "position-damping" or "two-dof".
+        equation : str, optional
+            A user-written equation instead of a family (``"x'' + f1(x)*x' + f2(x) = F"``).
+        symmetry : str or dict, optional
+            Parity priors: "f1=odd,f2=odd", "odd" (every curve), a dict, or "auto" (tested on unconstrained curves).
+        free_gain : bool
+            Learn the input gain g.
+        gain : float
+            The fixed input gain (the paper: 1).
+        gauge : str or sequence of str, optional
+            Curves anchored at 0 (None: the family's default).
+        gain_on : str
+            With a free gain, the noisy side and regression target: "force" or "acceleration".
+        jump : str or sequence of str
+            A learned jump at 0 of neural curves: "auto" (where the record sticks), "none" or curve names.
+        basis : str or dict or list, optional
+            The functions of each curve of method "parametric" ("f1=z; f2=z, z**3").
+        options : dict, optional
+            Options of the method's representation ({"degree": 10}, {"threshold": 0.05}) and of sticking detection.
+        degree : int, optional
+            The polynomial degree of "poly-cc" and the SINDy methods (``options["degree"]``).
+        hidden : sequence of int, optional
+            Layer widths of neural curves (None: the training preset's).
+        activation : str, optional
+            Activation of neural curves (None: the training preset's).
+        exclude_sticking : bool
+            Leave out samples where the mass sticks.
+        sr_options : dict, optional
+            Symbolic regression settings (engine, generations, ...) of the SR methods and post-SR.
+        differentiator : str or Differentiator, optional
+            As :class:`CharacteristicCurves`: "auto" (None), "given", a name or an instance.
+        objective : str or EquationError or OutputError or Auto
+            As :class:`CharacteristicCurves`: "auto", "equation-error", "output-error" or an object.
+        post_sr : bool, optional
+            Distil the fitted curves into closed forms; None: the method's choice (the "+post-sr" methods).
+        preset : str or TrainingPreset
+            Training settings of gradient-trained curves: "default", "paper" or a TrainingPreset.
+        random_state : int
+            Seed of every random choice (0 to 2**32 - 1).
+        threads : int, optional
+            Torch threads during the whole fit (None leaves torch's setting).
+        device : str
+            Where neural curves train: "cpu" or "cuda".
+        progress : callable, optional
+            ``progress(phase, step, total, loss)`` during training.
+        snr_db : float, optional
+            Known signal-to-noise ratio of the forcing in dB for the self-check (None: estimated).
+
+        Examples
+        --------
+        >>> from charcurves.fitting import CharacteristicCurves
+        >>> est = CharacteristicCurves.from_method("poly-cc", symmetry="odd", degree=5, random_state=1)
+        >>> est.method, est.random_state
+        (MethodPreset(name='poly-cc', symmetry='odd', options={'degree': 5}), 1)
+        >>> CharacteristicCurves.from_method("nn-cc", degree=5)
+        Traceback (most recent call last):
+        ...
+        charcurves._errors.ConfigError: degree= applies to poly-cc and the SINDy methods, not to method 'nn-cc'
+        """
+        preset_obj = MethodPreset.build(method, template=template, family=family, equation=equation,
+                                        symmetry=symmetry, free_gain=free_gain, gain=gain, gauge=gauge, gain_on=gain_on,
+                                        jump=jump, basis=basis, options=options, degree=degree, hidden=hidden,
+                                        activation=activation, exclude_sticking=exclude_sticking, sr_options=sr_options)
+        return cls(template, method=preset_obj, differentiator=differentiator, objective=objective, post_sr=post_sr,
+                   preset=preset, random_state=random_state, threads=threads, device=device, progress=progress,
+                   snr_db=snr_db)
 
     # ------------------------------------------------------------------ fitting
     def fit(self, traj) -> CharacteristicCurves:
@@ -194,16 +226,18 @@ class CharacteristicCurves:
     def tests_priors(self) -> bool:
         """Whether no method, template or symmetry was asked: then :meth:`fit_many` tests each
         curve's parity (poly-cc, about 0.1 s) and imposes only what the record supports."""
-        return self.method is None and self.template is None and self.symmetry in (None, "", {})
+        m = self._shorthands()
+        return m.name is None and self.template is None and m.symmetry in (None, "", {})
 
     def method_name(self) -> str:
         """The method preset: ``method``, else "nn-cc+sym" when a parity is asked (``symmetry``),
         else "nn-cc" (no prior; :meth:`fit_many` tests the parities first); "custom" for a template."""
-        if self.method is not None:
-            return self.method
+        m = self._shorthands()
+        if m.name is not None:
+            return m.name
         if self.template is not None:
             return "custom"
-        sym = self.symmetry
+        sym = m.symmetry
         values = sym.values() if isinstance(sym, dict) else str(sym or "").replace("=", ",").split(",")
         return "nn-cc+sym" if any(str(v).strip() in ("odd", "even") for v in values) else "nn-cc"
 
@@ -212,28 +246,28 @@ class CharacteristicCurves:
         def is_int(value) -> bool:
             return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
-        if self.method is not None and self.method not in METHODS:
-            raise ConfigError(f"unknown method {self.method!r}; choose one of {', '.join(METHODS)}")
+        m = self._shorthands()
+        m.check(self.template)  # a known method; no shorthand that it would ignore
         check_number("seed", self.random_state, label="the seed (random_state, --seed)")
         if self.threads is not None:
             check_number("threads", self.threads)
         for name in ("free_gain", "exclude_sticking"):  # free_gain="False" would turn the gain on
-            value = getattr(self, name)
+            value = getattr(m, name)
             if not isinstance(value, (bool, np.bool_)):
                 raise ConfigError(f"{name} must be True or False, got {value!r}; give e.g. {name}=True")
         if self.post_sr is not None and not isinstance(self.post_sr, (bool, np.bool_)):
             raise ConfigError(f"post_sr must be True, False or None, got {self.post_sr!r}")
-        if self.hidden is not None and (isinstance(self.hidden, (str, bytes)) or not hasattr(self.hidden, "__iter__")
-                                        or not all(is_int(h) and 1 <= h <= 4096 for h in self.hidden)
-                                        or not 1 <= len(list(self.hidden)) <= 16):
+        if m.hidden is not None and (isinstance(m.hidden, (str, bytes)) or not hasattr(m.hidden, "__iter__")
+                                     or not all(is_int(h) and 1 <= h <= 4096 for h in m.hidden)
+                                     or not 1 <= len(list(m.hidden)) <= 16):
             raise ConfigError(f"hidden must be a sequence of 1 to 16 layer widths, integers from 1 to 4096, got "
-                              f"{self.hidden!r}; give e.g. hidden=(16, 16)")
+                              f"{m.hidden!r}; give e.g. hidden=(16, 16)")
         try:
-            gain = float(self.gain)
+            gain = float(m.gain)
         except (TypeError, ValueError):
             gain = float("nan")
         if not np.isfinite(gain) or gain == 0:
-            raise ConfigError(f"the fixed gain must be a finite non-zero number, got {self.gain!r}; give e.g. gain=1.0")
+            raise ConfigError(f"the fixed gain must be a finite non-zero number, got {m.gain!r}; give e.g. gain=1.0")
         if self.snr_db is not None:
             try:
                 snr = float(self.snr_db)
@@ -243,47 +277,27 @@ class CharacteristicCurves:
                 raise ConfigError(f"snr_db must be a finite number of dB, got {self.snr_db!r}; give e.g. snr_db=20 "
                                   "(--snr 20), or leave it out to estimate the noise floor from the record")
             check_number("snr_db", snr)
-        if self.derivatives is not None and self.differentiator is not None and self.derivatives != self.differentiator:
-            raise ConfigError("give the differentiator once: derivatives= is the older name of differentiator=")
-        if self.sr_options is not None:  # before any training: post-SR runs after it
+        if m.sr_options is not None:  # before any training: post-SR runs after it
             from ..symbolic import make_engine
 
-            make_engine(self.sr_options)
-        self._check_basis_cost()
-
-    def _check_basis_cost(self) -> None:
-        """Refuse basis functions whose exact evaluation by sympy could hang (e.g. ``9**9**9*z``)."""
-        import re
-
-        from ..curves import expression_cost_problem
-
-        if isinstance(self.basis, str):
-            texts = re.split(r"[;,=]", self.basis)
-        elif isinstance(self.basis, dict):
-            texts = [str(f) for v in self.basis.values() for f in (v if isinstance(v, (list, tuple)) else [v])]
-        else:
-            return
-        for text in texts:
-            problem = expression_cost_problem(text.strip())
-            if problem:
-                raise ConfigError(f"basis function {text.strip()[:60]!r} {problem}; write a plain closed form "
-                                  "such as 'z**3' or 'tanh(50*z)'")
+            make_engine(m.sr_options)
+        m.check_basis_cost()
 
     def differentiator_value(self):
-        value = self.differentiator if self.differentiator is not None else self.derivatives
-        return "auto" if value is None else value
+        return "auto" if self.differentiator is None else self.differentiator
 
     def resolve(self):
         """``(template object with every curve set, its structure, symmetry per curve, method label)``."""
         from ..templates import as_template
 
         self.check()
+        m = self._shorthands()
         method = self.method_name()
         spec = METHODS.get(method)
         if self.template is None:
-            free_gain = bool(self.free_gain) or bool(spec.get("free_gain", False))
-            tmpl = as_template(self.family, equation=self.equation, free_gain=free_gain, gain=float(self.gain),
-                               gauge=self.gauge, gain_on=self.gain_on)
+            free_gain = bool(m.free_gain) or bool(spec.get("free_gain", False))
+            tmpl = as_template(m.family, equation=m.equation, free_gain=free_gain, gain=float(m.gain),
+                               gauge=m.gauge, gain_on=m.gain_on)
         else:
             if not hasattr(self.template, "structure"):
                 raise ConfigError(f"template must be a template object such as Separable(...) or Equation('...'), got "
@@ -298,11 +312,11 @@ class CharacteristicCurves:
             raise ConfigError(f"method {method!r} supports the separable family only; for the {structure.family} "
                               f"template use one of {', '.join(ok)}")
         unset = [n for n in names if tmpl.curves.get(n) is None]
-        sym = parse_symmetry(self.symmetry, names) if unset else {n: "none" for n in names}
+        sym = parse_symmetry(m.symmetry, names) if unset else {n: "none" for n in names}
         if spec is not None and unset:
             sym = self._method_symmetry(method, spec, sym, names)
-            options = check_method_options(method, self.options)
-            basis = parse_basis_option(self.basis, names, family=structure.family) if spec["representation"] == "basis" \
+            options = check_method_options(method, m.options)
+            basis = parse_basis_option(m.basis, names, family=structure.family) if spec["representation"] == "basis" \
                 else None
             jump = self._jumps(names)
             if jump not in ("auto", "none") and spec["representation"] != "neural":
@@ -311,7 +325,7 @@ class CharacteristicCurves:
             for n in unset:
                 curve = method_curve(method, n, symmetry=sym[n], jump="auto" if jump == "auto" else
                                      (() if jump == "none" else jump), options=options, basis=basis,
-                                     hidden=self.hidden, activation=self.activation,
+                                     hidden=m.hidden, activation=m.activation,
                                      velocity=n in structure.velocity_curves)
                 setattr(tmpl, n, curve)
         elif unset:
@@ -389,15 +403,71 @@ class CharacteristicCurves:
             raise NotFittedError("this CharacteristicCurves is not fitted yet; call fit(trajectory) first")
         return self.model_
 
+    # ------------------------------------------------------------------ the parameter contract
+    def flat_params(self) -> dict[str, Any]:
+        """Every setting as :meth:`from_method`'s arguments: ``from_method(**est.flat_params())`` is an
+        equal estimator (used where a fit derives a variant, e.g. the parity tests)."""
+        out = self.get_params(deep=False)
+        preset = out.pop("method")
+        out.update(self._shorthands().get_params(deep=False))
+        out["method"] = out.pop("name")
+        if preset is None:
+            out["method"] = None
+        return out
+
+    def _shorthands(self) -> MethodPreset:
+        if self.method is None:
+            return MethodPreset()
+        if not isinstance(self.method, MethodPreset):
+            raise ConfigError(f"method must be a MethodPreset, got {self.method!r}; build the estimator with "
+                              "CharacteristicCurves.from_method(...) or give method=MethodPreset(...)")
+        return self.method
+
+    # read by the fitting code (the pipeline, the parity tests): the method preset's shorthands
+    @property
+    def symmetry(self):
+        return self._shorthands().symmetry
+
+    @property
+    def options(self) -> dict | None:
+        return self._shorthands().options
+
+    @property
+    def jump(self):
+        return self._shorthands().jump
+
+    @property
+    def exclude_sticking(self) -> bool:
+        return self._shorthands().exclude_sticking
+
+    @property
+    def sr_options(self) -> dict | None:
+        return self._shorthands().sr_options
+
+    #: older names of the objective's settings: the constructor turns them into the objective
+    refine = None
+    refine_options = None
+
     def __repr__(self) -> str:
         sig = inspect.signature(type(self).__init__)
-        shown = [f"{n}={getattr(self, n)!r}" for n in self._param_names()
-                 if getattr(self, n) is not sig.parameters[n].default and getattr(self, n) != sig.parameters[n].default]
-        return f"CharacteristicCurves({', '.join(shown)})"
+        shown = [f"{n}={v!r}" for n, v in self.get_params(deep=False).items()
+                 if n != "method" and not _is_default(v, sig.parameters[n].default)]
+        if self.method is None:
+            return f"CharacteristicCurves({', '.join(shown)})"
+        own = self._shorthands()
+        head = [f"{own.name!r}"] if own.name is not None else []
+        return f"CharacteristicCurves.from_method({', '.join(head + [f'{n}={getattr(own, n)!r}' for n in own.given()] + shown)})"
+
+
+def _is_default(value: Any, default: Any) -> bool:
+    try:
+        return value is default or bool(value == default)
+    except Exception:  # noqa: BLE001 - arrays and odd objects
+        return False
 
 
 def fit(traj, method: str | None = None, **kwargs) -> FittedModel:
-    """Shortcut: ``CharacteristicCurves(method=method, **kwargs).fit(traj).model_``.
+    """Shortcut: ``CharacteristicCurves.from_method(method, **kwargs).fit(traj).model_``.
 
     Examples
     --------
@@ -408,4 +478,4 @@ def fit(traj, method: str | None = None, **kwargs) -> FittedModel:
     >>> model.method, {k: round(v, 3) for k, v in cc.curve_errors(model, system.true_curves()).items()}
     ('poly-cc', {'f1': 0.001, 'f2': 0.002})
     """
-    return CharacteristicCurves(method=method, **kwargs).fit(traj).model_
+    return CharacteristicCurves.from_method(method, **legacy_options(kwargs)).fit(traj).model_

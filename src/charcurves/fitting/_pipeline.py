@@ -66,7 +66,7 @@ def raw_fit(est, records, seeds=None):
     >>> from charcurves.fitting import CharacteristicCurves, raw_fit
     >>> from charcurves.systems import get_system
     >>> measured = corrupt(get_system("duffing").simulate(), 30, on="state", seed=0)
-    >>> [model], [prepared] = raw_fit(CharacteristicCurves(method="parametric", basis="f1=z; f2=z, z**3"), [measured])
+    >>> [model], [prepared] = raw_fit(CharacteristicCurves.from_method(method="parametric", basis="f1=z; f2=z, z**3"), [measured])
     >>> measured.has_derivatives, prepared.has_derivatives, "output_error" in model.info
     (False, True, False)
     """
@@ -133,8 +133,8 @@ def fit_with_post_sr(plain, distilled, records, seeds=None) -> tuple[list, list]
     >>> from charcurves.fitting import CharacteristicCurves, fit_with_post_sr
     >>> from charcurves.systems import get_system
     >>> record = get_system("duffing").simulate()
-    >>> plain, closed = fit_with_post_sr(CharacteristicCurves(method="sindy-cc+sym"),
-    ...                                  CharacteristicCurves(method="sindy-cc+sym+post-sr"), [record])
+    >>> plain, closed = fit_with_post_sr(CharacteristicCurves.from_method(method="sindy-cc+sym"),
+    ...                                  CharacteristicCurves.from_method(method="sindy-cc+sym+post-sr"), [record])
     >>> plain[0].method, closed[0].method, closed[0].curves["f2"].kind
     ('sindy-cc+sym', 'sindy-cc+sym+post-sr', 'symbolic')
     """

@@ -22,7 +22,7 @@ def priors_record(estimator, model) -> dict:
     >>> from charcurves.fitting import CharacteristicCurves
     >>> from charcurves.systems import get_system
     >>> record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
-    >>> estimator = CharacteristicCurves(method="poly-cc", symmetry="f1=odd")
+    >>> estimator = CharacteristicCurves.from_method(method="poly-cc", symmetry="f1=odd")
     >>> estimator.fit(record).model_.info["priors"]["summary"]
     'f1=odd, f2=none (asked: symmetry f1=odd)'
     """

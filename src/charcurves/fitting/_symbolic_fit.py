@@ -348,12 +348,12 @@ def _functional(joint: bool):
 
     run.__name__ = "fit_sr" if joint else "fit_sr_cc"
     run.__doc__ = (f"{'SR' if joint else 'SR-CC'} of a prepared record on a template (see :func:`fit_symbolic`); the "
-                   "functional form of ``CharacteristicCurves(method=" + ("'sr'" if joint else "'sr-cc'") + ")``.")
+                   "functional form of ``CharacteristicCurves.from_method(method=" + ("'sr'" if joint else "'sr-cc'") + ")``.")
     return run
 
 
 fit_sr = _functional(True)
-"""SR of a prepared record on a template (see :func:`fit_symbolic`): ``CharacteristicCurves(method='sr')``.
+"""SR of a prepared record on a template (see :func:`fit_symbolic`): ``CharacteristicCurves.from_method(method='sr')``.
 
 Examples
 --------
@@ -365,7 +365,7 @@ Examples
 ('sr', {'f1': 0.3*z, 'f2': z**3 - z})
 """
 fit_sr_cc = _functional(False)
-"""SR-CC of a prepared record on a template (see :func:`fit_symbolic`): ``CharacteristicCurves(method='sr-cc')``.
+"""SR-CC of a prepared record on a template (see :func:`fit_symbolic`): ``CharacteristicCurves.from_method(method='sr-cc')``.
 
 Examples
 --------

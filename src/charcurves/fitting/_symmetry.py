@@ -71,7 +71,7 @@ def parity_tests(ensemble, *, threshold: float = PARITY_THRESHOLD, n_grid: int =
     >>> from charcurves.fitting import CharacteristicCurves, fit_ensemble, parity_tests
     >>> from charcurves.systems import get_system
     >>> record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
-    >>> tests = parity_tests(fit_ensemble(CharacteristicCurves(method="poly-cc"), record, 8))
+    >>> tests = parity_tests(fit_ensemble(CharacteristicCurves.from_method(method="poly-cc"), record, 8))
     >>> {name: t["proposal"] for name, t in tests.items()}
     {'f1': 'odd', 'f2': 'odd'}
     """
@@ -132,20 +132,20 @@ def detect_parity(record, estimator, *, n_members: int = AUTO_MEMBERS, threshold
                   random_state: int = 0, method: str = "nn-cc", objective=None) -> dict[str, dict]:
     """:func:`~charcurves.fitting.detect_symmetry` with the settings of ``estimator`` (its class builds
     the tested fits, so this module needs no estimator class of its own)."""
-    params = estimator.get_params()
+    params = estimator.flat_params()
     params.update(method=method, symmetry=None, random_state=int(random_state), progress=None, basis=None,
                   post_sr=None)
     if METHODS[method]["representation"] != "neural":  # a jump or a network shape belongs to neural curves
         params.update(jump="auto", hidden=None, activation=None)
     if objective is not None:
-        params.update(objective=objective, refine=None, refine_options=None)
+        params.update(objective=objective)
     try:
-        ensemble = fit_ensemble(type(estimator)(**params), record, n_members, kind="bootstrap")
+        ensemble = fit_ensemble(type(estimator).from_method(**params), record, n_members, kind="bootstrap")
     except ConfigError as exc:
         # the residual bootstrap needs each equation's own forcing column; otherwise seeds only
         if "kind='seeds'" not in str(exc):
             raise
-        ensemble = fit_ensemble(type(estimator)(**params), record, n_members, kind="seeds")
+        ensemble = fit_ensemble(type(estimator).from_method(**params), record, n_members, kind="seeds")
     return parity_tests(ensemble, threshold=threshold)
 
 
@@ -182,7 +182,7 @@ def fit_many_auto(estimator, trajectories, seeds=None, *, default: bool = False)
     >>> from charcurves.fitting import CharacteristicCurves, fit_many_auto
     >>> from charcurves.systems import get_system
     >>> record = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
-    >>> [model] = fit_many_auto(CharacteristicCurves(method="poly-cc", symmetry="auto"), [record])
+    >>> [model] = fit_many_auto(CharacteristicCurves.from_method(method="poly-cc", symmetry="auto"), [record])
     >>> model.info["symmetry_auto"]["applied"], model.method
     ({'f1': 'odd', 'f2': 'odd'}, 'poly-cc')
     """
@@ -213,9 +213,9 @@ def fit_many_auto(estimator, trajectories, seeds=None, *, default: bool = False)
         proposals = {t[name]["proposal"] for t in tests}
         applied[name] = proposals.pop() if len(proposals) == 1 else "none"
     method = _method_for(estimator.method_name(), any(v != "none" for v in applied.values()))
-    params = estimator.get_params()
+    params = estimator.flat_params()
     params.update(method=method, symmetry=dict(applied))
-    models = type(estimator)(**params).fit_many(trajectories, seeds=seeds)
+    models = type(estimator).from_method(**params).fit_many(trajectories, seeds=seeds)
     report = {
         "mode": "default (no method, no prior asked: tested)" if default else "auto",
         "applied": applied,
@@ -239,17 +239,17 @@ def resolved_estimator(estimator, model):
     >>> from charcurves.data import corrupt
     >>> from charcurves.fitting import CharacteristicCurves, resolved_estimator
     >>> from charcurves.systems import get_system
-    >>> estimator = CharacteristicCurves(method="poly-cc", symmetry="auto")
+    >>> estimator = CharacteristicCurves.from_method("poly-cc", symmetry="auto")
     >>> model = estimator.fit(corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)).model_
     >>> resolved_estimator(estimator, model)
-    CharacteristicCurves(method='poly-cc', symmetry={'f1': 'odd', 'f2': 'odd'})
+    CharacteristicCurves.from_method('poly-cc', symmetry={'f1': 'odd', 'f2': 'odd'})
     """
     report = model.info.get("symmetry_auto") if isinstance(model.info, dict) else None
     auto = isinstance(estimator.symmetry, str) and estimator.symmetry.strip().lower() == "auto"
     if not (auto or estimator.tests_priors()) or not report:
         return estimator
-    params = estimator.get_params()
+    params = estimator.flat_params()
     params.update(method=report["method"], symmetry=dict(report["applied"]))
-    return type(estimator)(**params)
+    return type(estimator).from_method(**params)
 
 

@@ -10,6 +10,7 @@ The estimator's layer also imports ``resolve_objective`` (an objective setting t
 """
 
 from ._objectives import OBJECTIVES as OBJECTIVES
+from ._objectives import Auto as Auto
 from ._objectives import EquationError as EquationError
 from ._objectives import OutputError as OutputError
 from ._output_error import free_run_diagnostics as free_run_diagnostics
@@ -21,5 +22,5 @@ from ._objectives import resolve_objective, runs_output_error  # noqa: F401
 from ._output_error import choose_substeps  # noqa: F401
 from ._shooting import CurveBlock, ShootingProblem  # noqa: F401
 
-__all__ = ["EquationError", "OBJECTIVES", "OutputError", "free_run_diagnostics", "output_error_fit",
+__all__ = ["Auto", "EquationError", "OBJECTIVES", "OutputError", "free_run_diagnostics", "output_error_fit",
            "refine_output_error"]

@@ -13,34 +13,20 @@
 from __future__ import annotations
 
 import inspect
-from typing import Any
 
 import numpy as np
 
 from .._errors import ConfigError
+from .._params import Params
 
-__all__ = ["EquationError", "OutputError", "OBJECTIVES", "resolve_objective", "runs_output_error"]
+__all__ = ["Auto", "EquationError", "OutputError", "OBJECTIVES", "resolve_objective", "runs_output_error"]
 
 #: Names accepted by ``objective=`` (and the CLI's ``--objective``).
 OBJECTIVES = ("auto", "equation-error", "output-error")
 
 
-class _Objective:
+class _Objective(Params):
     name = ""
-
-    @classmethod
-    def _param_names(cls) -> list[str]:
-        return [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
-
-    def get_params(self, deep: bool = True) -> dict[str, Any]:
-        return {n: getattr(self, n) for n in self._param_names()}
-
-    def set_params(self, **params):
-        for k, v in params.items():
-            if k not in self._param_names():
-                raise ConfigError(f"{type(self).__name__} has no parameter {k!r}; valid: {', '.join(self._param_names())}")
-            setattr(self, k, v)
-        return self
 
     def __repr__(self) -> str:
         sig = inspect.signature(type(self).__init__)
@@ -162,6 +148,27 @@ class OutputError(_Objective):
             raise ConfigError(f"time_budget must be a positive number of seconds, got {b!r}")
 
 
+class Auto(_Objective):
+    """Equation error, then output error on records whose derivatives were estimated (``objective="auto"``).
+
+    Parameters
+    ----------
+    output_error : OutputError, optional
+        The settings of the output-error stage (None: ``OutputError()``).
+
+    Examples
+    --------
+    >>> from charcurves.fitting import Auto, OutputError
+    >>> Auto(output_error=OutputError(hold="zoh")).get_params()["output_error__hold"]
+    'zoh'
+    """
+
+    name = "auto"
+
+    def __init__(self, output_error: OutputError | None = None):
+        self.output_error = output_error
+
+
 #: ``refine_options`` of the older API -> OutputError parameters
 _REFINE_KEYS = {"hold": "hold", "substeps": "substeps", "segment_length": "segment_length", "max_nfev": "max_iter",
                 "time_budget": "time_budget"}
@@ -196,6 +203,11 @@ def resolve_objective(objective, refine=None, refine_options=None) -> tuple[str,
     if isinstance(objective, OutputError):
         settings = objective
         mode = "output-error"
+    elif isinstance(objective, Auto):
+        if objective.output_error is not None and not isinstance(objective.output_error, OutputError):
+            raise ConfigError(f"Auto(output_error=...) takes an OutputError(...), got {objective.output_error!r}")
+        settings = objective.output_error if objective.output_error is not None else settings
+        mode = "auto"
     elif isinstance(objective, EquationError):
         mode = "equation-error"
     elif isinstance(objective, str) and objective in OBJECTIVES:
@@ -203,7 +215,7 @@ def resolve_objective(objective, refine=None, refine_options=None) -> tuple[str,
     elif objective is None:
         mode = "auto"
     else:
-        raise ConfigError(f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}, EquationError() "
-                          "or OutputError(...)")
+        raise ConfigError(f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}, EquationError(), "
+                          "OutputError(...) or Auto(...)")
     settings.check()
     return mode, settings

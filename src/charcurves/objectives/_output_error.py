@@ -113,7 +113,7 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     >>> from charcurves.fitting import CharacteristicCurves, OutputError, get_preset, output_error_fit, raw_fit
     >>> from charcurves.systems import get_system
     >>> measured = corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 30, on="state", seed=0)
-    >>> [start], [prepared] = raw_fit(CharacteristicCurves(method="parametric", basis="f1=z; f2=z, z**3"), [measured])
+    >>> [start], [prepared] = raw_fit(CharacteristicCurves.from_method(method="parametric", basis="f1=z; f2=z, z**3"), [measured])
     >>> settings = OutputError(segment_length=16, substeps=1, max_iter=2)  # a short run
     >>> model = output_error_fit(start, prepared, measured, settings, preset=get_preset("default"))
     >>> model.info["output_error"]["status"], model.curves["f2"].coefficients.round(2).tolist()

@@ -25,7 +25,7 @@ def curve_bands(ensemble: Ensemble, *, level: float = 0.95, n_grid: int = 200) -
     >>> from charcurves.selection import curve_bands, fit_ensemble
     >>> from charcurves.systems import get_system
     >>> record = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
-    >>> bands = curve_bands(fit_ensemble(cc.CharacteristicCurves(method="poly-cc"), record, 4), level=0.95)
+    >>> bands = curve_bands(fit_ensemble(cc.CharacteristicCurves.from_method(method="poly-cc"), record, 4), level=0.95)
     >>> sorted(bands), len(bands["f2"]["z"]), bands["f2"]["members"]
     (['f1', 'f2'], 200, 4)
     """
@@ -64,7 +64,7 @@ def attach_bands(model, bands: dict) -> None:
     >>> from charcurves.selection import attach_bands, curve_bands, fit_ensemble
     >>> from charcurves.systems import get_system
     >>> record = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0)
-    >>> ensemble = fit_ensemble(cc.CharacteristicCurves(method="poly-cc"), record, 3)
+    >>> ensemble = fit_ensemble(cc.CharacteristicCurves.from_method(method="poly-cc"), record, 3)
     >>> attach_bands(ensemble.point, curve_bands(ensemble))
     >>> sorted(ensemble.point.bands)  # result_dict() writes them, plot_curves draws them
     ['f1', 'f2']
@@ -85,7 +85,7 @@ def band_coverage(bands: dict, truth: dict, *, names: Sequence[str] | None = Non
     >>> from charcurves.systems import get_system
     >>> system = get_system("duffing")
     >>> record = cc.corrupt(system.simulate(), 20, seed=0)
-    >>> bands = curve_bands(fit_ensemble(cc.CharacteristicCurves(method="poly-cc"), record, 4))
+    >>> bands = curve_bands(fit_ensemble(cc.CharacteristicCurves.from_method(method="poly-cc"), record, 4))
     >>> {name: cover > 0.5 for name, cover in band_coverage(bands, system.true_curves()).items()}
     {'f1': True, 'f2': True}
     """

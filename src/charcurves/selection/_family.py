@@ -130,7 +130,7 @@ def select_family(trajectories: Sequence, families: Sequence[str] = DEFAULT_FAMI
         cluster) gets every family's estimator at once, so that the families fit in parallel (the
         families after the accepted one are fitted but, without ``all_families``, not tested).
     **estimator_params
-        Further CharacteristicCurves settings (gauge, preset, derivatives...).
+        Further settings of ``CharacteristicCurves.from_method`` (gauge, preset, differentiator...).
 
     Returns
     -------
@@ -148,8 +148,7 @@ def select_family(trajectories: Sequence, families: Sequence[str] = DEFAULT_FAMI
     """
     import time
 
-    from ..fitting import CharacteristicCurves
-    from ..fitting import fit_ensembles
+    from ..fitting import CharacteristicCurves, fit_ensembles, legacy_options
 
     from .._bounds import check_number
 
@@ -163,13 +162,14 @@ def select_family(trajectories: Sequence, families: Sequence[str] = DEFAULT_FAMI
     if not families:
         raise ConfigError("no candidate family given; e.g. --families separable,position-damping")
     for family in families:  # an unknown family or method fails now, not after the first family's fits
-        CharacteristicCurves(family=family, method=method, random_state=random_state, threads=threads,
-                             **estimator_params).resolve()
+        CharacteristicCurves.from_method(method, family=family, random_state=random_state, threads=threads,
+                                         **legacy_options(estimator_params)).resolve()
     split = len(trajectories) == 1
     if split:
         trajectories = split_record(trajectories[0], 2)
-    estimators = [CharacteristicCurves(family=family, method=method, random_state=random_state, threads=threads,
-                                       **estimator_params) for family in families]
+    estimator_params = legacy_options(estimator_params)
+    estimators = [CharacteristicCurves.from_method(method, family=family, random_state=random_state, threads=threads,
+                                                   **estimator_params) for family in families]
     fitted, fit_each = None, 0.0
     if fit is not None:
         t0 = time.perf_counter()

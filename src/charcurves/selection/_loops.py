@@ -124,7 +124,7 @@ def middle_loop(ensembles: Sequence, *, threshold: float = MIDDLE_THRESHOLD, n_g
     >>> from charcurves.selection import fit_ensembles, middle_loop, split_record
     >>> from charcurves.systems import get_system
     >>> halves = split_record(cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0), 2)
-    >>> ensembles = fit_ensembles(cc.CharacteristicCurves(method="poly-cc", symmetry="odd"), halves, 4)
+    >>> ensembles = fit_ensembles(cc.CharacteristicCurves.from_method(method="poly-cc", symmetry="odd"), halves, 4)
     >>> result = middle_loop(ensembles)
     >>> result.passed, result.statistic < result.threshold
     (True, True)
@@ -322,7 +322,7 @@ def outer_loop(ensembles: Sequence, *, fraction: float = OUTER_FRACTION, eps: fl
     >>> from charcurves.selection import fit_ensembles, outer_loop, split_record
     >>> from charcurves.systems import get_system
     >>> halves = split_record(cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=500), 20, seed=0), 2)
-    >>> ensembles = fit_ensembles(cc.CharacteristicCurves(method="poly-cc", symmetry="odd"), halves, 3)
+    >>> ensembles = fit_ensembles(cc.CharacteristicCurves.from_method(method="poly-cc", symmetry="odd"), halves, 3)
     >>> result = outer_loop(ensembles, fraction=0.2)
     >>> result.loop, result.passed
     ('outer', True)

@@ -114,7 +114,7 @@ class BenchmarkSystem(abc.ABC):
 
     #: Registry name, also the name of the simulated trajectories.
     name: ClassVar[str] = "system"
-    #: The template family whose equation the system follows (CharacteristicCurves(family=...)).
+    #: The template family whose equation the system follows (CharacteristicCurves.from_method(family=...)).
     family: ClassVar[str] = "separable"
     #: Variant name -> default field values (every field left ``None`` must be listed).
     VARIANTS: ClassVar[dict[str, dict[str, Any]]] = {}

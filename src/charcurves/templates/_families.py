@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 from .._errors import ConfigError
+from .._params import Params
 from ._parse import check_equation_option
 from ._structure import FAMILY_EQUATIONS, EquationTemplate
 
@@ -23,7 +24,7 @@ FAMILY_NAMES = ("separable", "first-order", "position-damping", "two-dof")
 _OPTIONS = ("gain", "free_gain", "gauge", "gain_on")
 
 
-class Template:
+class Template(Params):
     """A structural template with a representation for each curve (scikit-learn parameters).
 
     Parameters (every template)
@@ -72,32 +73,13 @@ class Template:
     def _names(self) -> list[str]:
         return list(self.curve_names) + list(_OPTIONS)
 
-    def get_params(self, deep: bool = True) -> dict[str, Any]:
-        out = {name: getattr(self, name) for name in self._names()}
-        if deep:
-            for name in self.curve_names:
-                curve = getattr(self, name)
-                if curve is not None and hasattr(curve, "get_params"):
-                    out.update({f"{name}__{k}": v for k, v in curve.get_params().items()})
-        return out
+    def _param_names(self) -> list[str]:  # the curves of the template are parameters (Params' rule)
+        return self._names()
 
-    def set_params(self, **params) -> Template:
-        nested: dict[str, dict] = {}
-        for key, value in params.items():
-            head, sep, rest = key.partition("__")
-            if head not in self._names():
-                raise ConfigError(f"{type(self).__name__} has no parameter {head!r}; valid: {', '.join(self._names())}")
-            if sep:
-                nested.setdefault(head, {})[rest] = value
-            else:
-                setattr(self, head, value)
-        for head, sub in nested.items():
-            curve = getattr(self, head)
-            if curve is None:
-                raise ConfigError(f"{type(self).__name__}.{head} is not set; give it a representation first "
-                                  f"(e.g. {head}=Neural()) before setting {head}__...")
-            curve.set_params(**sub)
-        return self
+    def __eq__(self, other: object) -> bool:
+        return type(self) is type(other) and self.get_params(deep=False) == other.get_params(deep=False)  # type: ignore[attr-defined]
+
+    __hash__ = None  # type: ignore[assignment]  # mutable through set_params
 
     def __repr__(self) -> str:
         parts = [f"{n}={getattr(self, n)!r}" for n in self._names()
