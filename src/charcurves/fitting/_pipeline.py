@@ -105,9 +105,21 @@ def _fit_stage(est, records: list, seeds):
         # start that fits the noise with more effective parameters loses): keep them all here (post-SR
         # comes after output error, so a +post-sr fit keeps them too)
         fit_preset = preset.replace(combine_tol=float("inf"))
-    models = fit_records(prepared, structure, reps, fit_preset, seeds, method=method, masks=masks, jumps=jumps,
-                         options=options, sr_options=dict(est.sr_options or {}), device=est.device,
-                         threads=est.threads, progress=est.progress)
+    fit_kw = {"method": method, "options": options, "sr_options": dict(est.sr_options or {}), "device": est.device,
+              "threads": est.threads, "progress": est.progress}
+    notes = [None] * len(prepared)
+    if kind == "gradient" and preset.auto_terms and preset.check_auto_terms:
+        from ._auto_terms import choose_layouts
+
+        plain = resolve_jumps(reps, prepared, structure, estimated, preset, automatic=False)
+        jumps, notes = choose_layouts(
+            prepared, structure, reps, fit_preset, seeds, masks=masks, tested=jumps, plain=plain,
+            fit=lambda recs, p, s, m, lay: fit_records(recs, structure, reps, p, s, masks=m, jumps=lay, **fit_kw),
+            method=method)
+    models = fit_records(prepared, structure, reps, fit_preset, seeds, masks=masks, jumps=jumps, **fit_kw)
+    for m, note in zip(models, notes):
+        if note is not None:
+            m.info["automatic_terms"] = note
     return {"models": models, "prepared": prepared, "estimated": estimated, "seeds": seeds, "mode": mode,
             "oe_settings": oe_settings, "preset": preset, "reps": reps, "structure": structure, "sym": sym,
             "method": method, "diff": diff, "jumps": jumps, "use_oe": use_oe, "masks": masks}
