@@ -1,13 +1,15 @@
-"""Automatic terms that only help: a test-added term stays where it lowers the held-out error.
+"""Automatic terms that only help: a test-added term stays where the fit with it is the better model.
 
 The tests of :func:`._fit_path.resolve_jumps` add terms beside a neural curve -- polynomial powers
 (``powers="auto"``), harmonics (``harmonics="auto"``) and a learned jump (``jump="auto"``) -- from
 least-squares fits on the record. A term can then displace the network it was meant to help: with
-a cubic beside it, the evidence may prune the network of a tanh spring and leave ``a + b z^3``. So
-where the tests added a term, the record is fitted twice on the same samples minus held-out blocks
-(every third of ten contiguous blocks of time), with the tests' layout and with no automatic term,
-and the terms stay only when their fit's equation error on the held-out blocks is lower (by
-``HELD_OUT_MARGIN``, relative). The fit itself is then made on every sample with the layout chosen.
+a cubic beside it, the evidence may prune the network of a tanh spring and leave ``a + b z^3``, or
+training may settle with the term in a worse minimum. So where the tests added a term, the record
+is fitted a second time with no automatic term, and the terms stay only when their fit has the
+lower Akaike criterion ``n ln(loss) + 2 gamma`` (``gamma``: the evidence's effective number of
+parameters of the fit; a fit without Bayesian regularisation counts its added terms), an estimate
+of the error on data the fit has not seen. Both fits are of the whole record: the one kept is the
+answer, no third fit is made.
 
 ``TrainingPreset(auto_terms=False)`` turns the automatic terms off (only the terms a curve or the
 preset names stay); ``check_auto_terms=False`` keeps whatever the tests add, unchecked.
@@ -17,63 +19,51 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["held_out_mask", "choose_layouts", "HELD_OUT_BLOCKS", "HELD_OUT_EVERY", "HELD_OUT_MARGIN"]
-
-#: the record is cut into this many contiguous blocks of time ...
-HELD_OUT_BLOCKS = 10
-#: ... and every this-many-th block, starting with the second, is held out (3 of 10)
-HELD_OUT_EVERY = 3
-#: the automatic terms stay when they lower the held-out equation error by more than this (relative)
-HELD_OUT_MARGIN = 0.0
+__all__ = ["aic", "check_layouts", "describe"]
 
 
-def held_out_mask(n: int, blocks: int = HELD_OUT_BLOCKS, every: int = HELD_OUT_EVERY) -> np.ndarray:
-    """The held-out samples of a record of ``n``: blocks 1, 1 + every, ... of ``blocks`` contiguous ones.
+def aic(model, n: int, extra: int = 0) -> float:
+    """``n ln(loss) + 2 gamma`` of a fitted model over ``n`` fitted samples (``gamma``: its effective
+    parameters from the evidence, else ``extra``).
 
     Examples
     --------
-    >>> from charcurves.fitting._auto_terms import held_out_mask
-    >>> m = held_out_mask(20)
-    >>> int(m.sum()), [int(i) for i in np.flatnonzero(m)[:4]]
-    (6, [2, 3, 8, 9])
+    >>> from types import SimpleNamespace
+    >>> from charcurves.fitting._auto_terms import aic
+    >>> round(aic(SimpleNamespace(loss=0.01, info={"effective_parameters": 4.0}), 100), 2)
+    -452.52
     """
-    block = np.minimum(np.arange(n) * blocks // max(n, 1), blocks - 1)
-    return (block % every) == 1
+    gamma = (getattr(model, "info", None) or {}).get("effective_parameters")
+    gamma = float(extra) if gamma is None else float(gamma)
+    return float(n * np.log(max(float(model.loss), 1e-300)) + 2.0 * gamma)
 
 
-def _held_out_loss(model, record, held: np.ndarray) -> float:
-    """Mean squared equation error of ``model`` on the ``held`` samples of ``record``."""
-    r = np.asarray(model.force_residual(record), dtype=float)
-    if r.ndim == 2 and r.shape[0] != held.size:
-        r = r.T
-    r = r[held]
-    return float(np.mean(r**2)) if r.size else float("nan")
+def _n_terms(layout) -> int:
+    jumps, powers, harmonics = layout
+    return len(jumps) + sum(len(p) for _, p in powers) + 2 * sum(len(w) for _, w in harmonics)
 
 
-def choose_layouts(records, template, reps, preset, seeds, *, method: str, masks, tested, plain, fit):
-    """Per record, the layout to fit: the tests' (``tested``) where its held-out error is lower, else
-    ``plain`` (no automatic term), and what was compared (``info["automatic_terms"]`` of the fit).
-
-    ``fit(records, preset, seeds, masks, layouts)`` fits records with a layout each (the one fitting
-    path). Records whose tests added nothing keep their layout and are not refitted.
-    """
-    layouts, notes = [], []
-    for i, rec in enumerate(records):
-        if tested[i] == plain[i]:
-            layouts.append(tested[i])
-            notes.append(None)
-            continue
-        held = held_out_mask(rec.n_samples) & np.asarray(masks[i], bool)
-        train = np.asarray(masks[i], bool) & ~held
-        with_terms, without = fit([rec, rec], preset, [seeds[i], seeds[i]], [train, train], [tested[i], plain[i]])
-        loss_with, loss_without = _held_out_loss(with_terms, rec, held), _held_out_loss(without, rec, held)
-        keep = bool(np.isfinite(loss_with) and loss_with < (1.0 - HELD_OUT_MARGIN) * loss_without)
-        layouts.append(tested[i] if keep else plain[i])
-        notes.append({"tested": describe(tested[i]), "held_out_loss_with": loss_with,
-                      "held_out_loss_without": loss_without, "kept": keep,
-                      "held_out": f"{int(held.sum())} of {rec.n_samples} samples ({HELD_OUT_BLOCKS} blocks, every "
-                                  f"{HELD_OUT_EVERY}rd from the 2nd)"})
-    return layouts, notes
+def check_layouts(records, models, masks, tested, plain, refit, n_equations: int = 1):
+    """The models to keep: where the tests added terms (``tested[i] != plain[i]``), the fit without
+    them (``refit(indices)``: the models of those records fitted with ``plain``) replaces the fit
+    with them unless the latter has the lower :func:`aic`. Returns ``(models, notes)``; a note (for
+    ``info["automatic_terms"]``) says what was tested and compared, None where nothing was added."""
+    idx = [i for i in range(len(records)) if tested[i] != plain[i]]
+    notes: list = [None] * len(records)
+    if not idx:
+        return list(models), notes
+    others = dict(zip(idx, refit(idx)))
+    out = list(models)
+    for i in idx:
+        n = int(np.count_nonzero(masks[i])) * max(1, int(n_equations))
+        a_with = aic(models[i], n, _n_terms(tested[i]))
+        a_without = aic(others[i], n, 0)
+        keep = bool(np.isfinite(a_with) and a_with < a_without)
+        if not keep:
+            out[i] = others[i]
+        notes[i] = {"tested": describe(tested[i]), "kept": keep, "aic_with": a_with, "aic_without": a_without,
+                    "loss_with": float(models[i].loss), "loss_without": float(others[i].loss)}
+    return out, notes
 
 
 def describe(layout) -> dict:
