@@ -456,6 +456,8 @@ def main(argv=None) -> int:
     parser.add_argument("--methods", default=None,
                         help="comma-separated labels to run in place of the grid's methods, e.g. "
                              "nn-cc,nn-cc/no-auto,limit (METHOD/no-auto: without the automatic terms)")
+    parser.add_argument("--half", choices=("tuning", "report"), default=None,
+                        help="run only the systems of this half of the zoo")
     a = parser.parse_args(argv)
     if not a.report_only:
         done = {r["key"] for r in read_results(a.out)}
@@ -463,7 +465,8 @@ def main(argv=None) -> int:
         unknown = [m for m in methods or () if m not in LABELS]
         if unknown:
             parser.error(f"unknown method label(s) {', '.join(unknown)}; choose from {', '.join(LABELS)}")
-        todo = [j for j in jobs_for(a.grid, a.post_sr, methods) if job_key(j) not in done]
+        todo = [j for j in jobs_for(a.grid, a.post_sr, methods) if job_key(j) not in done
+                and a.half in (None, zoo.SYSTEM_HALF[j[0]])]
         if a.limit_jobs is not None:
             todo = todo[:a.limit_jobs]
         t0 = time.perf_counter()
