@@ -458,6 +458,7 @@ def main(argv=None) -> int:
                              "nn-cc,nn-cc/no-auto,limit (METHOD/no-auto: without the automatic terms)")
     parser.add_argument("--half", choices=("tuning", "report"), default=None,
                         help="run only the systems of this half of the zoo")
+    parser.add_argument("--settings", default=None, help="comma-separated noise settings to run (e.g. x30)")
     a = parser.parse_args(argv)
     if not a.report_only:
         done = {r["key"] for r in read_results(a.out)}
@@ -466,7 +467,7 @@ def main(argv=None) -> int:
         if unknown:
             parser.error(f"unknown method label(s) {', '.join(unknown)}; choose from {', '.join(LABELS)}")
         todo = [j for j in jobs_for(a.grid, a.post_sr, methods) if job_key(j) not in done
-                and a.half in (None, zoo.SYSTEM_HALF[j[0]])]
+                and a.half in (None, zoo.SYSTEM_HALF[j[0]]) and (a.settings is None or j[2] in a.settings.split(","))]
         if a.limit_jobs is not None:
             todo = todo[:a.limit_jobs]
         t0 = time.perf_counter()
