@@ -76,3 +76,19 @@ def test_a_fit_records_the_check_and_its_settings_follow_the_choice(duffing_20db
     off = cc.fit(duffing_20db, method="nn-cc+sym", preset=QUICK.replace(auto_terms=False), threads=1, random_state=0)
     assert "automatic_terms" not in off.info and off.info["settings"]["polynomial_terms"] == {}
     assert off.loss == note["loss_without"]  # the fit the check compared is the fit without the terms
+
+
+def test_the_zoo_runs_a_method_without_its_automatic_terms_under_its_own_label():
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import bench_zoo
+    import zoo
+
+    jobs = bench_zoo.jobs_for("seed0", methods=["nn-cc+sym/no-auto", "limit"])
+    odd = [n for n, s in zoo.SYSTEMS.items() if s.all_odd()]
+    assert len(jobs) == 2 * (len(odd) + len(zoo.SYSTEMS)) and {j[2] for j in jobs} == {"F25", "x30"}
+    assert {j[0] for j in jobs if j[1] == "nn-cc+sym/no-auto"} == set(odd)
+    assert bench_zoo.VARIANTS == {"no-auto": {"auto_terms": False}, "unchecked": {"check_auto_terms": False}}
+    assert bench_zoo.LABELS.index("nn-cc/no-auto") == bench_zoo.LABELS.index("nn-cc") + 1
