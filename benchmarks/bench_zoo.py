@@ -43,6 +43,11 @@ LIMIT = "limit"
 #: The methods in table order; "limit" is the parametric fit on the true basis.
 METHODS = ("nn-cc", "nn-cc+sym", "poly-cc", "sindy-cc+sym", "nn-cc+post-sr", LIMIT)
 ODD_ONLY = ("nn-cc+sym", "sindy-cc+sym")
+#: method labels "METHOD/VARIANT": the method with its default preset changed (issue 46, item 2):
+#: "no-auto" without the automatic terms, "unchecked" with them but not checked on held-out blocks
+VARIANTS = {"no-auto": {"auto_terms": False}, "unchecked": {"check_auto_terms": False}}
+#: every label a table may show, in table order (the variants after their method)
+LABELS = tuple(x for m in METHODS for x in [m] + ([f"{m}/{v}" for v in VARIANTS] if m in ("nn-cc", "nn-cc+sym") else []))
 #: setting -> (noise on, SNR in dB)
 SETTINGS = {"F20": ("force", 20.0), "F25": ("force", 25.0), "F30": ("force", 30.0), "x30": ("state", 30.0),
             "x40": ("state", 40.0)}
@@ -58,14 +63,18 @@ RATIO_MEDIAN, RATIO_WORST = 1.5, 3.0
 POST_SR = "nn-cc+post-sr"
 
 
-def jobs_for(grid: str, post_sr: bool = False) -> list[tuple[str, str, str, int]]:
+def jobs_for(grid: str, post_sr: bool = False, methods=None) -> list[tuple[str, str, str, int]]:
     """The jobs of a grid, in run order: passes of (setting, seed), each over every system and method,
     so that a run cut short holds whole passes. ``quick``: 4 systems, F25 and x30, seed 0; ``first``
     (the committed run): F25 seeds 0-2, x30 seeds 0-1, F20 and F30 seed 0, nn-cc+post-sr on F25 seed
-    0, then x40 seed 0; ``full``: every setting, seeds 0-4, nn-cc+post-sr with ``post_sr``."""
+    0, then x40 seed 0; ``full``: every setting, seeds 0-4, nn-cc+post-sr with ``post_sr``.
+    ``seed0``: the first two passes of ``first`` (F25 and x30, seed 0). ``methods``: these labels (``LABELS``, e.g. ``nn-cc/no-auto``) in place of the grid's methods."""
     plain = [m for m in METHODS if m != POST_SR]
     if grid == "quick":
         systems = ["sep-drag-tanh", "sep-atan-asym", "pd-gauss-tanh", "fo-tanh-tanh"]
+        passes = [("F25", 0, plain), ("x30", 0, plain)]
+    elif grid == "seed0":
+        systems = list(zoo.SYSTEMS)
         passes = [("F25", 0, plain), ("x30", 0, plain)]
     elif grid == "first":
         systems = list(zoo.SYSTEMS)
@@ -75,14 +84,16 @@ def jobs_for(grid: str, post_sr: bool = False) -> list[tuple[str, str, str, int]
         systems = list(zoo.SYSTEMS)
         passes = [(s, seed, plain) for seed in range(5) for s in SETTINGS]
     else:
-        raise SystemExit(f"unknown grid {grid!r}; choose quick, first or full")
+        raise SystemExit(f"unknown grid {grid!r}; choose quick, seed0, first or full")
     if post_sr and grid != "first":
         passes += [(s, k, [POST_SR]) for s, k, _ in passes]
+    if methods is not None:
+        passes = [(s, k, list(methods)) for s, k, ms in passes if POST_SR not in ms]
     out = []
-    for setting, seed, methods in passes:
+    for setting, seed, pass_methods in passes:
         for name in systems:
-            for m in methods:
-                if m in ODD_ONLY and not zoo.SYSTEMS[name].all_odd():
+            for m in pass_methods:
+                if m.split("/")[0] in ODD_ONLY and not zoo.SYSTEMS[name].all_odd():
                     continue
                 out.append((name, m, setting, seed))
     return out
@@ -151,7 +162,10 @@ def run_job(job) -> dict:
         _CLEAN[name] = system.simulate()
     clean = _CLEAN[name]
     record = noisy_record(system, setting, seed, clean)
-    kw = {"method": "parametric", "basis": zoo.basis_option(system)} if method == LIMIT else {"method": method}
+    base, _, variant = method.partition("/")
+    kw = {"method": "parametric", "basis": zoo.basis_option(system)} if method == LIMIT else {"method": base}
+    if variant:
+        kw["preset"] = cc.PRESETS["default"].replace(**VARIANTS[variant])
     row = {"key": job_key(job), "system": name, "family": system.family, "method": method, "setting": setting,
            "seed": seed, "load_start": round(os.getloadavg()[0], 2)}
     t0 = time.perf_counter()
@@ -172,6 +186,9 @@ def run_job(job) -> dict:
         jumps = {k: c.components().get("jump_height") for k, c in model.curves.items() if hasattr(c, "components")}
         if any(v is not None for v in jumps.values()):
             row["jump_height"] = {k: v for k, v in jumps.items() if v is not None}
+        auto = info.get("automatic_terms")
+        if isinstance(auto, dict):  # the held-out check of the automatic terms (issue 46, item 2)
+            row["automatic_terms"] = auto
         oe = info.get("output_error")
         if isinstance(oe, dict):
             row["oe_status"] = oe.get("status")
@@ -282,7 +299,7 @@ def table_lines(rows: list[dict], *, markdown: bool = False) -> list[str]:
         lines += ["", f"### {title}" if markdown else f"== {title} ==", ""]
         body = []
         for setting in SETTINGS:
-            for method in METHODS:
+            for method in LABELS:
                 g = summ.get((half, setting, method))
                 if g is None:
                     continue
@@ -328,7 +345,7 @@ def table_lines(rows: list[dict], *, markdown: bool = False) -> list[str]:
 def curve_lines(rows: list[dict], setting: str, *, markdown: bool = False) -> list[str]:
     """Per zoo row, the nRMSE of every method at ``setting`` (median over seeds) and the limit's."""
     summ = summarise(rows)
-    methods = [m for m in METHODS if any(k[1] == setting and k[2] == m for k in summ)]
+    methods = [m for m in LABELS if any(k[1] == setting and k[2] == m for k in summ)]
     table = {}
     for (half, s, m), g in summ.items():
         if s == setting:
@@ -373,7 +390,7 @@ def jump_lines(rows: list[dict], *, markdown: bool = False) -> list[str]:
         g[2] += any(j < 0 for j in jumps)
         g[3] += r["n_sticking_samples"] > 0
     head = ["setting", "method", "jobs", "jump learned", "negative jump", "sticking samples dropped"]
-    body = [[s, m, *map(str, groups[(s, m)])] for s in SETTINGS for m in METHODS if (s, m) in groups]
+    body = [[s, m, *map(str, groups[(s, m)])] for s in SETTINGS for m in LABELS if (s, m) in groups]
     return _render(head, body, markdown)
 
 
@@ -429,17 +446,28 @@ def write_markdown(path: str, rows: list[dict]) -> None:
 # ----------------------------------------------------------------------------- main
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--grid", default="first", choices=("quick", "first", "full"))
+    parser.add_argument("--grid", default="first", choices=("quick", "seed0", "first", "full"))
     parser.add_argument("--post-sr", action="store_true", help="nn-cc+post-sr on every pass (Operon; slower)")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--out", default=RESULTS, help="the JSONL store (default %(default)s)")
     parser.add_argument("--report-only", action="store_true", help="print the tables of the store; fit nothing")
     parser.add_argument("--markdown", metavar="FILE", help="write the tables into FILE (docs/zoo.md)")
     parser.add_argument("--limit-jobs", type=int, default=None, help="run at most this many new jobs")
+    parser.add_argument("--methods", default=None,
+                        help="comma-separated labels to run in place of the grid's methods, e.g. "
+                             "nn-cc,nn-cc/no-auto,limit (METHOD/no-auto: without the automatic terms)")
+    parser.add_argument("--half", choices=("tuning", "report"), default=None,
+                        help="run only the systems of this half of the zoo")
+    parser.add_argument("--settings", default=None, help="comma-separated noise settings to run (e.g. x30)")
     a = parser.parse_args(argv)
     if not a.report_only:
         done = {r["key"] for r in read_results(a.out)}
-        todo = [j for j in jobs_for(a.grid, a.post_sr) if job_key(j) not in done]
+        methods = None if a.methods is None else [m.strip() for m in a.methods.split(",") if m.strip()]
+        unknown = [m for m in methods or () if m not in LABELS]
+        if unknown:
+            parser.error(f"unknown method label(s) {', '.join(unknown)}; choose from {', '.join(LABELS)}")
+        todo = [j for j in jobs_for(a.grid, a.post_sr, methods) if job_key(j) not in done
+                and a.half in (None, zoo.SYSTEM_HALF[j[0]]) and (a.settings is None or j[2] in a.settings.split(","))]
         if a.limit_jobs is not None:
             todo = todo[:a.limit_jobs]
         t0 = time.perf_counter()

@@ -190,8 +190,9 @@ def test_jump_layout_is_decided_per_record_in_a_batch(duffing):
 def test_decay_groups_shared_per_curve_and_per_layer(duffing, duffing_20db):
     from charcurves.fitting import get_preset
 
+    # the cubic unchecked (check_auto_terms=False): the groups of a model with polynomial terms
     fits = {g: cc.fit(duffing_20db, method="nn-cc+sym", random_state=0, threads=1,
-                      preset=get_preset("default").replace(decay_groups=g))
+                      preset=get_preset("default").replace(decay_groups=g, check_auto_terms=False))
             for g in ("shared", "per-curve", "per-layer")}
     assert fits["shared"].info["weight_decay_groups"] == ["all networks"]
     assert fits["per-curve"].info["weight_decay_groups"] == ["f1", "f2", "f2 polynomial terms"]

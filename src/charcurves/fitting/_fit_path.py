@@ -83,11 +83,14 @@ def dry_friction_test(traj, template: EquationTemplate) -> tuple[float, float]:
 QUADRATIC_F_THRESHOLD = 100.0
 
 
-def resolve_jumps(reps: dict, records, template: EquationTemplate, estimated: list[bool], preset: TrainingPreset):
+def resolve_jumps(reps: dict, records, template: EquationTemplate, estimated: list[bool], preset: TrainingPreset,
+                  automatic: bool = True):
     """Per record, the layout of the neural curves: ``(jumps, powers, harmonics)`` -- the curves that get
     a learned jump (``jump="auto"`` decided per record), the polynomial terms of each (``powers="auto"``:
     :func:`nonlinearity_test`) and their harmonic frequencies in the scaled argument (``harmonics="auto"``:
-    :func:`harmonic_test`)."""
+    :func:`harmonic_test`). ``automatic=False`` (or ``preset.auto_terms`` off): no term that a test
+    would add, only those the curves or the preset name."""
+    automatic = automatic and preset.auto_terms
     out = []
     for rec, est in zip(records, estimated):
         layout = []
@@ -97,7 +100,7 @@ def resolve_jumps(reps: dict, records, template: EquationTemplate, estimated: li
                 continue
             if jump is True:
                 layout.append(name)
-            elif preset.auto_jump and name in template.velocity_curves and (
+            elif automatic and preset.auto_jump and name in template.velocity_curves and (
                     sticking_mask(rec, rel_tol=ESTIMATED_STICK_TOL if est else None).any()
                     or dry_friction_test(rec, template)[0] > JUMP_F_THRESHOLD):
                 layout.append(name)
@@ -108,7 +111,7 @@ def resolve_jumps(reps: dict, records, template: EquationTemplate, estimated: li
             setting = rep.powers_setting(preset)
             if setting != "auto":
                 powers.append((name, tuple(setting)))
-            elif name not in layout:
+            elif automatic and name not in layout:
                 # even curves may get a quadratic, odd ones a cubic, unconstrained ones either or both
                 # (a convex curve such as 0.5 + x^2 is then carried by its term up to the range's ends,
                 # where a network alone is flattened by its weight decay if the record says little there)
@@ -118,18 +121,20 @@ def resolve_jumps(reps: dict, records, template: EquationTemplate, estimated: li
                                > (QUADRATIC_F_THRESHOLD if sym == "none" and k == 2 else JUMP_F_THRESHOLD))
                 if chosen:
                     powers.append((name, chosen))
-        out.append((tuple(layout), tuple(powers), _harmonics(reps, rec, template, preset, layout)))
+        out.append((tuple(layout), tuple(powers), _harmonics(reps, rec, template, preset, layout, automatic)))
     return out
 
 
-def _harmonics(reps: dict, rec, template: EquationTemplate, preset: TrainingPreset, jumps) -> tuple:
+def _harmonics(reps: dict, rec, template: EquationTemplate, preset: TrainingPreset, jumps,
+               automatic: bool = True) -> tuple:
     """``((name, frequencies in u), ...)`` for the neural curves of one record."""
     neural = {n: r for n, r in reps.items() if r.kind == "neural"}
     fixed, auto = {}, []
     for name, rep in neural.items():
         setting = rep.harmonics_setting(preset)
         if setting == "auto":
-            auto.append(name)
+            if automatic:
+                auto.append(name)
         elif setting:
             fixed[name] = setting
     D = template.design(rec) if fixed else None

@@ -107,9 +107,24 @@ def _fit_stage(est, records: list, seeds):
         # start that fits the noise with more effective parameters loses): keep them all here (post-SR
         # comes after output error, so a +post-sr fit keeps them too)
         fit_preset = preset.replace(combine_tol=float("inf"))
-    models = fit_records(prepared, structure, reps, fit_preset, seeds, method=method, masks=masks, jumps=jumps,
-                         options=options, sr_options=dict(est.sr_options or {}), device=est.device,
-                         threads=est.threads, progress=est.progress)
+    fit_kw = {"method": method, "options": options, "sr_options": dict(est.sr_options or {}), "device": est.device,
+              "threads": est.threads, "progress": est.progress}
+    models = fit_records(prepared, structure, reps, fit_preset, seeds, masks=masks, jumps=jumps, **fit_kw)
+    if kind == "gradient" and preset.auto_terms and preset.check_auto_terms and \
+            not any(m.info.get("interrupted") for m in models):
+        # a term a test added stays only where the fit with it is the better model (._auto_terms)
+        from ._auto_terms import check_layouts
+
+        plain = resolve_jumps(reps, prepared, structure, estimated, preset, automatic=False)
+        models, notes = check_layouts(
+            prepared, models, masks, jumps, plain, n_equations=structure.n_equations,
+            refit=lambda idx: fit_records([prepared[i] for i in idx], structure, reps, fit_preset,
+                                          [seeds[i] for i in idx], masks=[masks[i] for i in idx],
+                                          jumps=[plain[i] for i in idx], **fit_kw))
+        jumps = [j if note is None or note["kept"] else p for j, p, note in zip(jumps, plain, notes)]
+        for m, note in zip(models, notes):
+            if note is not None:
+                m.info["automatic_terms"] = note
     return {"models": models, "prepared": prepared, "estimated": estimated, "seeds": seeds, "mode": mode,
             "oe_settings": oe_settings, "preset": preset, "reps": reps, "structure": structure, "sym": sym,
             "method": method, "diff": diff, "jumps": jumps, "use_oe": use_oe, "masks": masks}

@@ -55,6 +55,14 @@ class TrainingPreset:
     auto_jump : bool
         Whether ``jump="auto"`` may add a learned jump to the velocity curve of records with
         sticking phases (off in the paper preset: the paper's networks have none).
+    auto_terms : bool
+        Whether tests may add terms beside the neural curves (``powers="auto"``,
+        ``harmonics="auto"``, ``jump="auto"``). False: only the terms a curve or the preset names,
+        e.g. to measure a fit without the automatic terms.
+    check_auto_terms : bool
+        Keep the terms the tests add only where they lower the equation error on held-out blocks of
+        the record (two extra fits on 70 % of it, see ``charcurves.fitting._auto_terms``); False
+        keeps them unchecked.
 
     Examples
     --------
@@ -91,6 +99,8 @@ class TrainingPreset:
     combine: str = "mean"
     combine_tol: float = 0.02
     auto_jump: bool = True
+    auto_terms: bool = True
+    check_auto_terms: bool = True
     bayesian: bool = True
     decay_groups: str = "per-layer"
 
