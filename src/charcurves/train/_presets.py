@@ -60,9 +60,9 @@ class TrainingPreset:
         ``harmonics="auto"``, ``jump="auto"``). False: only the terms a curve or the preset names,
         e.g. to measure a fit without the automatic terms.
     check_auto_terms : bool
-        Keep the terms the tests add only where they lower the equation error on held-out blocks of
-        the record (two extra fits on 70 % of it, see ``charcurves.fitting._auto_terms``); False
-        keeps them unchecked.
+        Keep the terms the tests add only where the fit with them has the lower Akaike criterion
+        than a second fit of the record without them (one extra fit where a test added a term; see
+        ``charcurves.fitting._auto_terms``); False keeps them unchecked.
 
     Examples
     --------
