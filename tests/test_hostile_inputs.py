@@ -92,3 +92,56 @@ def test_underscores_and_unicode_in_the_header_are_still_names(tmp_path):
     cols = read_csv_columns(path)
     assert list(cols) == ["t", "x_1", "F\u00b2"]
     assert cols["x_1"].tolist() == [1.5, 1.25e-3]
+
+
+# --- item 6: offsets and time units --------------------------------------------------------------------------
+
+def _duffing():
+    from charcurves.systems import get_system
+
+    return get_system("duffing").simulate()
+
+
+def _write_record(path, t, x, F) -> str:
+    lines = ["t,x,F"] + [f"{a!r},{b!r},{c!r}" for a, b, c in zip(map(float, t), map(float, x), map(float, F))]
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)
+
+
+def test_an_offset_that_swamps_the_motion_in_float64_is_refused(tmp_path, capsys):
+    from charcurves.data import Trajectory
+
+    tr = _duffing()
+    with pytest.raises(DataError, match=r"^x is offset by 1e\+09, 1\.[0-9]+e\+09 times its motion \(standard deviation "
+                                        r"0\.[0-9]+\): float64 keeps too few digits of the motion; subtract the offset "
+                                        r"\(x - 1e\+09\) and fit again$"):
+        Trajectory(t=tr.t, x=np.asarray(tr.x) + 1e9, F=tr.F)
+    path = _write_record(tmp_path / "r.csv", tr.t, np.asarray(tr.x) + 1e9, tr.F)
+    line = _one_line_exit_2(capsys, "fit", path, "--out", tmp_path / "out", "--method", "poly-cc")
+    assert "x is offset by 1e+09" in line and "subtract the offset" in line
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_moderate_offset_is_warned_and_none_without_one():
+    tr = _duffing()
+    assert tr.quality_warnings() == []
+    centre = float(np.median(tr.x)) + 10.0
+    (line,) = tr.replace(x=np.asarray(tr.x) + 10.0).quality_warnings()
+    assert line.startswith(f"x is centred at {centre:.6g}, ")
+    assert "the curves of x are anchored at x = 0, outside the data" in line
+    assert f"subtract the offset (x - {centre:.6g})" in line
+    assert tr.replace(x=np.asarray(tr.x) + 2.0).quality_warnings() == []  # 2 is within 5 standard deviations
+
+
+def test_a_time_step_of_milliseconds_names_the_time_units(tmp_path, capsys):
+    tr = _duffing()
+    (line,) = tr.replace(t=np.asarray(tr.t) * 1000.0).quality_warnings()
+    step = float(np.median(np.diff(np.asarray(tr.t) * 1000.0)))
+    assert line == (f"the time step is {step:.6g} time units: if t is in milliseconds (or sample numbers), convert it "
+                    "to seconds (t / 1000), since x', x'' and the curves are per unit of t")
+    path = _write_record(tmp_path / "ms.csv", np.asarray(tr.t)[:300] * 1000.0, np.asarray(tr.x)[:300],
+                         np.asarray(tr.F)[:300])
+    code, _, err = _run(capsys, "fit", path, "--out", tmp_path / "out", "--method", "poly-cc", "--no-figure",
+                        "--objective", "equation-error", "--quiet")
+    assert code == 0
+    assert f"charcurves: warning: the time step is {step:.6g} time units: if t is in milliseconds" in err
