@@ -145,3 +145,206 @@ def test_a_time_step_of_milliseconds_names_the_time_units(tmp_path, capsys):
                         "--objective", "equation-error", "--quiet")
     assert code == 0
     assert f"charcurves: warning: the time step is {step:.6g} time units: if t is in milliseconds" in err
+
+
+# --- item 6: options that do not apply, --truth of another system --------------------------------------------
+
+@pytest.fixture(scope="module")
+def duffing_csv(tmp_path_factory):
+    from charcurves.data import corrupt
+
+    path = tmp_path_factory.mktemp("rec") / "d.csv"
+    rec = corrupt(_duffing(), 30.0, on="force", seed=0)
+    rec.slice(slice(0, 400)).to_csv(path)
+    return str(path)
+
+
+@pytest.mark.parametrize(("extra", "option", "why"), [
+    (("--method", "poly-cc", "--basis", "f1=z; f2=z"), "--basis",
+     "it gives the functions of --method parametric, and the method is poly-cc"),
+    (("--basis", "f1=z; f2=z"), "--basis", "and the method is the default (nn-cc)"),
+    (("--method", "poly-cc", "--sr-generations", "5"), "--sr-generations", "method poly-cc runs no symbolic regression"),
+    (("--method", "nn-cc", "--sr-operators", "add,mul"), "--sr-operators", "method nn-cc runs no symbolic regression"),
+    (("--objective", "equation-error", "--segment-length", "64"), "--segment-length",
+     "it sets the output-error refit, which --objective equation-error turns off"),
+    (("--refine", "none", "--refine-substeps", "4"), "--refine-substeps", "which --refine none turns off"),
+    (("--bands-level", "0.9"), "--bands-level", "no uncertainty bands are computed without --bands N"),
+    (("--bands-kind", "seeds"), "--bands-kind", "no uncertainty bands are computed without --bands N"),
+    (("--truth-variant", "scripts"), "--truth-variant", "it chooses the parameters of --truth, which is not given"),
+    (("--noisy-side", "acceleration"), "--noisy-side", "when the gain is learned, and the gain is fixed"),
+])
+def test_fit_options_that_do_not_apply_are_refused(tmp_path, capsys, duffing_csv, extra, option, why):
+    line = _one_line_exit_2(capsys, "fit", duffing_csv, "--out", tmp_path / "out", *extra)
+    assert line.startswith(f"charcurves: error: {option} does not apply here: ")
+    assert why in line and "(see 'charcurves fit --help')" in line
+    assert not (tmp_path / "out").exists()
+
+
+def test_simulate_and_report_options_that_do_not_apply_are_refused(tmp_path, capsys):
+    line = _one_line_exit_2(capsys, "simulate", "duffing", "--out", tmp_path / "s.csv", "--noise-on", "state")
+    assert "--noise-on does not apply here: no noise is added without --snr; add --snr 20 or drop --noise-on" in line
+    line = _one_line_exit_2(capsys, "simulate", "duffing", "--out", tmp_path / "s.csv", "--noise-reference", "rms")
+    assert "--noise-reference does not apply here: no noise is added without --snr" in line
+    assert not (tmp_path / "s.csv").exists()
+    line = _one_line_exit_2(capsys, "report", tmp_path, "--truth-variant", "paper")
+    assert "--truth-variant does not apply here" in line
+
+
+def test_options_that_apply_still_pass_with_their_defaults(tmp_path, capsys, duffing_csv):
+    code, _, err = _run(capsys, "fit", duffing_csv, "--out", tmp_path / "out", "--method", "poly-cc", "--free-gain",
+                        "--noisy-side", "force", "--truth", "duffing", "--truth-variant", "paper", "--no-figure",
+                        "--quiet")
+    assert code == 0, err
+    import json
+
+    res = json.loads((tmp_path / "out" / "result.json").read_text())
+    assert res["curve_rmse"]["f1"] < 0.05 and res["warnings"] == []
+
+
+def test_a_truth_of_another_system_is_said(tmp_path, capsys, duffing_csv):
+    import json
+
+    code, _, err = _run(capsys, "fit", duffing_csv, "--out", tmp_path / "out", "--method", "poly-cc", "--truth",
+                        "stick-slip", "--no-figure", "--quiet")
+    assert code == 0
+    res = json.loads((tmp_path / "out" / "result.json").read_text())
+    (line,) = [w for w in res["warnings"] if "--truth" in w]
+    assert line.startswith("the fit reaches its noise floor (loss 0.")
+    assert "its curves differ from those of --truth by f1 " in line
+    assert "the record is probably not of that system; check --truth and --truth-variant" in line
+    assert f"charcurves: warning: {line}" in err
+    # the right system: no such line
+    code, _, err = _run(capsys, "fit", duffing_csv, "--out", tmp_path / "ok", "--method", "poly-cc", "--truth",
+                        "duffing", "--no-figure", "--quiet")
+    assert code == 0 and "--truth" not in err
+
+
+# --- item 6: API seeds, foreign stores, result files of another type ----------------------------------------
+
+@pytest.mark.parametrize(("seeds", "message"), [
+    ([0], "seeds has 1 entry for 2 records; give one seed per record, e.g. seeds=list(range(2)), or leave seeds out"),
+    ([0, 1, 2], "seeds has 3 entries for 2 records"),
+    ("01", "seeds must be a sequence of integers, one per record, got str"),
+    ([1.5, 2], "seeds[0] must be an integer from 0 to 4294967295"),
+    ([0, -1], "seeds[1] must be an integer from 0 to 4294967295"),
+])
+def test_fit_many_refuses_seeds_that_do_not_match_the_records(seeds, message):
+    from charcurves._errors import ConfigError
+    from charcurves.fitting import CharacteristicCurves
+
+    tr = _duffing()
+    with pytest.raises(ConfigError) as info:
+        CharacteristicCurves(method="poly-cc").fit_many([tr, tr], seeds=seeds)
+    assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_fit_many_takes_a_range_of_seeds():
+    from charcurves.fitting import CharacteristicCurves
+
+    tr = _duffing().slice(slice(0, 300))
+    a, b = CharacteristicCurves(method="poly-cc").fit_many([tr, tr], seeds=range(2))
+    assert a.loss == pytest.approx(b.loss)
+
+
+@pytest.mark.parametrize("kind", ["not-sqlite", "other-tables", "results-without-meta"])
+def test_a_foreign_results_store_is_refused_and_left_as_it_is(tmp_path, capsys, kind):
+    import sqlite3
+
+    path = tmp_path / "results.sqlite"
+    if kind == "not-sqlite":
+        path.write_bytes(b"my notes, not a database\n" * 100)
+    else:
+        con = sqlite3.connect(path)
+        con.execute("CREATE TABLE foo (a INTEGER)" if kind == "other-tables" else "CREATE TABLE results (a INTEGER)")
+        con.commit()
+        con.close()
+    before = path.read_bytes()
+    line = _one_line_exit_2(capsys, "benchmark", "--out", tmp_path, "--systems", "duffing", "--methods", "parametric",
+                            "--snr", "30", "--realizations", "1", "--quiet")
+    if kind == "not-sqlite":
+        assert f"{str(path)!r} is not a charcurves results store (file is not a database)" in line
+    else:
+        tables = "foo" if kind == "other-tables" else "results"
+        assert f"{str(path)!r} is a SQLite file but not a charcurves results store (its tables: {tables})" in line
+    assert "move it away or give another output folder" in line
+    assert path.read_bytes() == before
+
+
+def test_report_only_names_a_missing_or_mistyped_run_file(tmp_path, capsys):
+    line = _one_line_exit_2(capsys, "benchmark", "--out", tmp_path, "--report-only")
+    assert line == (f"charcurves: error: cannot rebuild the report: {tmp_path / 'run.json'} is missing (the grid and "
+                    "sections of the run); restore the file, or run `charcurves benchmark` into this folder to write it")
+    (tmp_path / "run.json").write_text("[1, 2]")
+    line = _one_line_exit_2(capsys, "benchmark", "--out", tmp_path, "--report-only")
+    assert f"{tmp_path / 'run.json'} holds a JSON list, not the object a benchmark writes" in line
+
+
+@pytest.fixture(scope="module")
+def fit_folder(tmp_path_factory, duffing_csv):
+    out = tmp_path_factory.mktemp("fit") / "o"
+    assert main(["fit", duffing_csv, "--out", str(out), "--method", "poly-cc", "--no-figure", "--quiet"]) == 0
+    return out
+
+
+@pytest.mark.parametrize(("field", "value", "what"), [
+    ("warnings", 5, "a list of strings, got int '5'"),
+    ("curve_rmse", {"f1": "small"}, "an object of numbers, got dict"),
+    ("source", ["a"], "a string, got list"),
+    ("interrupted", "no", "true or false, got str 'no'"),
+])
+def test_a_result_file_with_a_field_of_another_type_is_one_line(tmp_path, capsys, fit_folder, field, value, what):
+    import json
+    import shutil
+
+    folder = tmp_path / "f"
+    shutil.copytree(fit_folder, folder)
+    res = json.loads((folder / "result.json").read_text())
+    res[field] = value
+    (folder / "result.json").write_text(json.dumps(res))
+    line = _one_line_exit_2(capsys, "report", folder, "--out", tmp_path / "r.html")
+    assert f"{str(folder / 'result.json')!r}: field {field!r} must be {what}" in line
+    assert not (tmp_path / "r.html").exists()
+    (folder / "result.json").write_text("[1, 2, 3]")
+    line = _one_line_exit_2(capsys, "report", folder, "--out", tmp_path / "r.html")
+    assert "holds a JSON list, not the object 'charcurves fit' writes" in line
+
+
+# --- item 5: --address naming no cluster ---------------------------------------------------------------------
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_an_address_with_no_cluster_is_one_line_within_the_probe_timeout(tmp_path, capsys, duffing_csv):
+    from charcurves._errors import ConfigError
+    from charcurves.experiments._ray_probe import probe_address
+
+    port = _free_port()  # closed again: nothing listens there
+    with pytest.raises(ConfigError, match=rf"^no Ray cluster answers at '127.0.0.1:{port}' \(127.0.0.1:{port}: "
+                                          r"Connection refused within 10 s\); start one"):
+        probe_address(f"127.0.0.1:{port}")
+    with pytest.raises(ConfigError, match=rf"no Ray cluster answers at 'ray://127.0.0.1:{port}'"):
+        probe_address(f"ray://127.0.0.1:{port}")
+    pytest.importorskip("ray")
+    line = _one_line_exit_2(capsys, "select", duffing_csv, "--address", f"127.0.0.1:{port}", "--members", "3",
+                            "--quiet")
+    assert f"no Ray cluster answers at '127.0.0.1:{port}'" in line
+
+
+def test_the_probe_passes_a_listening_port_and_leaves_auto_to_ray():
+    import socket
+
+    from charcurves._errors import ConfigError
+    from charcurves.experiments._ray_probe import probe_address
+
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen(1)
+        assert probe_address(f"127.0.0.1:{server.getsockname()[1]}") is None
+    assert probe_address("auto") is None
+    with pytest.raises(ConfigError, match=r"the Ray address 'head:abc' is not HOST:PORT"):
+        probe_address("head:abc")

@@ -147,6 +147,11 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
     if truth is not None:
         errors = curve_errors(model, truth)
         result["curve_rmse"] = errors
+        from ._truth import truth_mismatch
+
+        mismatch = truth_mismatch(model, truth, errors)
+        if mismatch:
+            result["warnings"].append(mismatch)
     bad = non_finite_paths(result)
     if bad:
         result["non_finite"] = bad  # the numbers written as null, by path

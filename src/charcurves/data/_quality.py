@@ -39,7 +39,7 @@ def check_offset(name: str, values: np.ndarray) -> None:
     """Refuse a state whose offset swamps its motion in float64 (more than :data:`OFFSET_REFUSE`
     standard deviations from 0), naming the offset to subtract."""
     ratio, centre, spread = _offset_ratio(values)
-    if ratio > OFFSET_REFUSE:
+    if ratio > OFFSET_REFUSE and spread > 64 * np.finfo(float).eps * abs(centre):  # else x is constant: its own check
         raise DataError(f"{name} is offset by {centre:.6g}, {ratio:.3g} times its motion (standard deviation "
                         f"{spread:.3g}): float64 keeps too few digits of the motion; subtract the offset "
                         f"({name} - {centre:.6g}) and fit again")

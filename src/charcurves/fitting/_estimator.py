@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from .._bounds import check_number
+from .._bounds import check_number, check_seeds
 from .._errors import ConfigError, NotFittedError
 from ._methods import METHODS, check_method_options, method_curve, parse_basis_option, parse_symmetry
 from ._model import FittedModel
@@ -172,6 +172,8 @@ class CharacteristicCurves:
         from ._train import torch_threads
 
         self.check()  # the thread count among the rest, before it is used
+        trajectories = list(trajectories)
+        seeds = check_seeds(seeds, len(trajectories))  # one integer seed per record (issue 50)
         from ._symmetry import fit_many_auto
 
         with torch_threads(self.threads):
