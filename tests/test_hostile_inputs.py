@@ -348,3 +348,51 @@ def test_the_probe_passes_a_listening_port_and_leaves_auto_to_ray():
     assert probe_address("auto") is None
     with pytest.raises(ConfigError, match=r"the Ray address 'head:abc' is not HOST:PORT"):
         probe_address("head:abc")
+
+
+# --- an interrupted SR-CC fit keeps the curves its finished searches found -----------------------------------
+
+def test_an_interrupted_sr_cc_fit_keeps_the_curves_found_so_far(tmp_path, capsys, duffing_csv, monkeypatch):
+    """Ctrl-C arriving in SR-CC's third univariate search (outer iteration 2): the two curves of
+    iteration 1 are the model, written with exit 130 and marked interrupted. The engine is the real
+    one; only its third call raises what Ctrl-C raises there (_interruptible's KeyboardInterrupt)."""
+    import json
+
+    from charcurves.symbolic import OperonEngine
+
+    real = OperonEngine.fit
+    calls = []
+
+    def fit(self, *args, **kwargs):
+        calls.append(kwargs.get("random_state"))
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(OperonEngine, "fit", fit)
+    out = tmp_path / "o"
+    code, _, err = _run(capsys, "fit", duffing_csv, "--out", out, "--method", "sr-cc", "--sr-generations", "8",
+                        "--no-figure", "--quiet")
+    assert code == 130, err
+    assert f"interrupted; kept the best model so far in {out / 'model'}" in err
+    res = json.loads((out / "result.json").read_text())
+    assert res["interrupted"] is True
+    assert res["info"]["stopped_by"] == "interrupted (Ctrl-C or SIGTERM) in outer iteration 2 of 8"
+    assert res["info"]["iterations"] == 2 and len(res["info"]["history"]) == 2
+    assert res["info"]["history"][0] == res["info"]["history"][1]  # iteration 2 changed nothing yet
+    assert all(res["curves"][n]["expression"] not in (None, "0") for n in ("f1", "f2"))
+    assert len(calls) == 3
+
+
+def test_an_sr_cc_fit_interrupted_in_its_first_search_keeps_nothing(tmp_path, capsys, duffing_csv, monkeypatch):
+    from charcurves.symbolic import OperonEngine
+
+    def fit(self, *args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(OperonEngine, "fit", fit)
+    code, _, err = _run(capsys, "fit", duffing_csv, "--out", tmp_path / "o", "--method", "sr-cc", "--no-figure",
+                        "--quiet")
+    assert code == 130
+    assert err.strip() == "charcurves: interrupted before a model was trained; nothing was kept"
+    assert not (tmp_path / "o" / "model").exists()
