@@ -396,3 +396,41 @@ def test_an_sr_cc_fit_interrupted_in_its_first_search_keeps_nothing(tmp_path, ca
     assert code == 130
     assert err.strip() == "charcurves: interrupted before a model was trained; nothing was kept"
     assert not (tmp_path / "o" / "model").exists()
+
+
+# --- item 5: a record of millions of rows ---------------------------------------------------------------------
+
+def test_the_cost_of_a_long_record_is_said_and_beyond_the_bound_refused():
+    from charcurves.cli._common import UsageError
+    from charcurves.cli._cost import LONG_RECORD_MAX, LONG_RECORD_WARN, record_cost_warnings
+
+    assert (LONG_RECORD_WARN, LONG_RECORD_MAX) == (1_000_000, 5_000_000)
+    assert record_cost_warnings(999_999, allow_long=False, output_error=True) == []
+    (line,) = record_cost_warnings(3_000_000, allow_long=False, output_error=True)
+    assert line == ("the record has 3,000,000 samples: the fit's time and memory grow in proportion to them (output "
+                    "error simulates every sample in each of its iterations); for a first fit take a span (--rows "
+                    "0:200000) or one row in 15 of the file (a shorter record of the same span, if the sampling rate "
+                    "allows it)")
+    with pytest.raises(UsageError, match=r"^the record has 10,000,000 samples, more than 5,000,000: .* one row in 50 "
+                                         r"of the file .*, or add --long-record to fit all of it$"):
+        record_cost_warnings(10_000_000, allow_long=False, output_error=False)
+    (line,) = record_cost_warnings(10_000_000, allow_long=True, output_error=False)
+    assert "(every sample enters each pass of the fit)" in line
+
+
+def test_fit_says_the_cost_before_the_fit_and_refuses_beyond_the_bound(tmp_path, capsys, duffing_csv, monkeypatch):
+    import charcurves.cli._cost as cost
+
+    monkeypatch.setattr(cost, "LONG_RECORD_WARN", 300)  # the 400-row record stands for a record of millions
+    monkeypatch.setattr(cost, "LONG_RECORD_MAX", 350)
+    line = _one_line_exit_2(capsys, "fit", duffing_csv, "--out", tmp_path / "o", "--method", "poly-cc")
+    assert line.startswith("charcurves: error: the record has 400 samples, more than 350: ")
+    assert not (tmp_path / "o").exists()
+    code, _, err = _run(capsys, "fit", duffing_csv, "--out", tmp_path / "o", "--method", "poly-cc", "--long-record",
+                        "--no-figure", "--quiet")
+    assert code == 0
+    assert err.startswith("charcurves: warning: the record has 400 samples: the fit's time and memory grow in "
+                          "proportion to them (every sample enters each pass of the fit)")
+    code, _, err = _run(capsys, "fit", duffing_csv, "--out", tmp_path / "p", "--method", "poly-cc", "--rows", "0:299",
+                        "--no-figure", "--quiet")
+    assert code == 0 and "samples" not in err  # --rows takes fewer: no line

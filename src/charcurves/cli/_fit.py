@@ -261,6 +261,12 @@ def cmd_fit(a) -> int:
     refuse_inputs_among_outputs({"record": a.csv}, [os.path.join(a.out, name) for name in FIT_OUTPUTS + (FOLDER_LOCK_NAME,)])
     traj = read_record(a.csv, family=a.family, equation=a.equation, time_col=time_column(a.time_col), x_col=a.x_col,
                        force_col=a.force_col, sample_rate=a.sample_rate, rows=a.rows)
+    from ._cost import record_cost_warnings
+
+    oe = a.objective == "output-error" or (a.objective in (None, "auto") and not traj.has_derivatives)
+    cost = record_cost_warnings(traj.n_samples, allow_long=a.long_record, output_error=oe)
+    for line in cost:  # before the fit, not only in result.json after it
+        warn(line)
     truth = None
     if a.truth:
         from ..systems import get_system

@@ -106,6 +106,9 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     f.add_argument("--force-col", default="F", help="the forcing column (default F)")
     f.add_argument("--sample-rate", type=cli_number("sample_rate"), default=None, help=_RATE_HELP)
     f.add_argument("--rows", type=_rows, default=None, help="START:STOP rows to use")
+    f.add_argument("--long-record", action="store_true",
+                   help="fit a record of more than 5,000,000 samples all the same (refused without it; from "
+                        "1,000,000 a warning says the cost)")
     f.add_argument("--truth", default=None,
                    help=f"benchmark system ({', '.join(SYSTEM_NAMES)}) to compare the curves with")
     f.add_argument("--truth-variant", default=None, help="parameter set of --truth (default paper)")
