@@ -434,3 +434,33 @@ def test_fit_says_the_cost_before_the_fit_and_refuses_beyond_the_bound(tmp_path,
     code, _, err = _run(capsys, "fit", duffing_csv, "--out", tmp_path / "p", "--method", "poly-cc", "--rows", "0:299",
                         "--no-figure", "--quiet")
     assert code == 0 and "samples" not in err  # --rows takes fewer: no line
+
+
+# --- found playing the hostile user ----------------------------------------------------------------------------
+
+def test_a_text_cell_with_an_underscore_is_not_called_an_underscore_between_digits(tmp_path):
+    path = _csv(tmp_path / "r.csv", "t,x,F\n0,1,2\n0.1,THP_enabled:,3\n")
+    with pytest.raises(DataError, match=r"column 'x': 'THP_enabled:' is not a number; fix or remove that row"):
+        read_csv_columns(path)
+
+
+@pytest.mark.parametrize(("scale", "shown"), [(1e-12, "4e-14"), (1e12, "4e+10")])
+def test_a_time_step_beyond_the_sample_rate_range_is_refused(tmp_path, capsys, scale, shown):
+    tr = _duffing()
+    t = np.asarray(tr.t)[:400] * scale
+    path = _write_record(tmp_path / "r.csv", t, np.asarray(tr.x)[:400], np.asarray(tr.F)[:400])
+    line = _one_line_exit_2(capsys, "fit", path, "--out", tmp_path / "o", "--method", "poly-cc")
+    assert f"the median time step is {shown}, outside 1e-12 ... 1e+09 (the sample rates 1e-09 ... 1e+12 Hz" in line
+    assert "rescale t to seconds" in line
+
+
+def test_a_basis_infinite_at_the_gauge_point_is_one_line_and_elsewhere_no_numpy_warning(tmp_path, capsys,
+                                                                                          duffing_csv):
+    line = _one_line_exit_2(capsys, "fit", duffing_csv, "--out", tmp_path / "o", "--method", "parametric", "--basis",
+                            "f1=z; f2=z**-1", "--no-figure", "--quiet")
+    assert "curve f2 is not finite at 0 (value " in line
+    assert "where the gauge anchors it (f2(0) = 0); give functions that are finite at 0, or anchor another curve" in line
+    code, _, err = _run(capsys, "fit", duffing_csv, "--out", tmp_path / "p", "--method", "parametric", "--basis",
+                        "f1=z**-1; f2=z", "--no-figure", "--quiet")  # f1 is not anchored: fitted (badly), and said
+    assert code == 0 and "RuntimeWarning" not in err
+    assert err.startswith("charcurves: warning: self-check: the equation-error loss is ")

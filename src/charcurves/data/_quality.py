@@ -7,7 +7,7 @@ import numpy as np
 from .._errors import DataError
 
 __all__ = ["check_rows", "gap_warnings", "signal_warnings", "lag1", "GAP_FACTOR", "NOISE_LAG1", "OFFSET_WARN",
-           "OFFSET_REFUSE", "check_offset", "offset_warnings", "time_unit_warnings"]
+           "OFFSET_REFUSE", "STEP_RANGE", "check_offset", "check_time_step", "offset_warnings", "time_unit_warnings"]
 
 #: A time step this many times the median step is a gap (:meth:`Trajectory.quality_warnings`).
 GAP_FACTOR = 10.0
@@ -52,6 +52,25 @@ def offset_warnings(name: str, values: np.ndarray) -> list[str]:
                 f"anchored at {name} = 0, outside the data, and must extrapolate to it, which degrades the fit; "
                 f"subtract the offset ({name} - {centre:.6g}) unless {name} = 0 is the physical origin"]
     return []
+
+
+#: the median time step a record may have: the reciprocals of the sample-rate bounds (1e-9 ... 1e12 Hz,
+#: charcurves._bounds); beyond them x' and x'' leave float64's comfortable range (a step of 5e-14
+#: fitted at 7e7 times its noise floor)
+STEP_RANGE = (1e-12, 1e9)
+
+
+def check_time_step(t: np.ndarray) -> None:
+    """Refuse a record whose median time step lies outside :data:`STEP_RANGE`, naming the fix."""
+    steps = np.diff(np.asarray(t, dtype=float))
+    if not steps.size:
+        return
+    step = float(np.median(steps))
+    lo, hi = STEP_RANGE
+    if not lo <= step <= hi:
+        raise DataError(f"the median time step is {step:.3g}, outside {lo:g} ... {hi:g} (the sample rates "
+                        f"{1 / hi:g} ... {1 / lo:g} Hz that charcurves computes derivatives for); rescale t to "
+                        "seconds (or another unit that brings the step into range)")
 
 
 def time_unit_warnings(t: np.ndarray) -> list[str]:

@@ -10,7 +10,8 @@ from typing import Any, cast
 import numpy as np
 
 from .._errors import ConfigError, DataError
-from ._quality import check_offset, check_rows, gap_warnings, offset_warnings, signal_warnings, time_unit_warnings
+from ._quality import (check_offset, check_rows, check_time_step, gap_warnings, offset_warnings, signal_warnings,
+                       time_unit_warnings)
 
 __all__ = ["Trajectory", "MultiTrajectory", "MIN_SAMPLES", "MAX_MAGNITUDE"]
 
@@ -153,6 +154,7 @@ class Trajectory(_SampledRecord):
                 f"time {what} at row {row} (t={t[row]:.6g} after {t[row - 1]:.6g}); "
                 "time stamps must be strictly increasing: sort the rows and drop duplicates"
             )
+        check_time_step(t)
         if "x" in cols:
             check_offset("x", cols["x"])
         for key, arr in cols.items():
@@ -366,6 +368,7 @@ class MultiTrajectory(_SampledRecord):
             row = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
             raise DataError(f"time does not increase at row {row}; time stamps must be strictly increasing: "
                             "sort the rows and drop duplicates")
+        check_time_step(t)
         t.setflags(write=False)
         object.__setattr__(self, "t", t)
         if not self.states or not self.forces:

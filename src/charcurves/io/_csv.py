@@ -154,8 +154,8 @@ def _refuse_lookalike_numbers(text: str, p: str, body: list[list[str]], body_lin
         for c in r:
             if "_" in c or not c.isascii():
                 cell = c.strip()
-                if cell.isascii() and "_" not in cell:
-                    continue
+                if (cell.isascii() and "_" not in cell) or not _is_number(cell):
+                    continue  # plain, or not a number to float() either: the usual "is not a number" below
                 shown = cell if len(cell) <= 20 else cell[:17] + "..."
                 why = ("an underscore between digits" if cell.isascii() else "characters other than ASCII digits")
                 raise DataError(f"line {line} of {p!r}: {shown!r} is not a plain decimal number ({why}); write "
