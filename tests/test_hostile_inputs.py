@@ -464,3 +464,9 @@ def test_a_basis_infinite_at_the_gauge_point_is_one_line_and_elsewhere_no_numpy_
                         "f1=z**-1; f2=z", "--no-figure", "--quiet")  # f1 is not anchored: fitted (badly), and said
     assert code == 0 and "RuntimeWarning" not in err
     assert err.startswith("charcurves: warning: self-check: the equation-error loss is ")
+
+
+def test_an_unknown_device_is_refused_for_every_method(tmp_path, capsys, duffing_csv):
+    line = _one_line_exit_2(capsys, "fit", duffing_csv, "--out", tmp_path / "o", "--method", "poly-cc", "--device",
+                            "tpu")
+    assert line == "charcurves: error: unknown device 'tpu'; use --device cpu or cuda"

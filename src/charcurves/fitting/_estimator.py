@@ -217,6 +217,10 @@ class CharacteristicCurves:
         check_number("seed", self.random_state, label="the seed (random_state, --seed)")
         if self.threads is not None:
             check_number("threads", self.threads)
+        if self.device != "cpu":  # a device that does not exist, for every method (poly-cc took "tpu" silently)
+            from ._pipeline import check_device
+
+            check_device(self.device)
         for name in ("free_gain", "exclude_sticking"):  # free_gain="False" would turn the gain on
             value = getattr(self, name)
             if not isinstance(value, (bool, np.bool_)):
