@@ -185,6 +185,8 @@ def test_simulate_and_report_options_that_do_not_apply_are_refused(tmp_path, cap
     assert "--noise-on does not apply here: no noise is added without --snr; add --snr 20 or drop --noise-on" in line
     line = _one_line_exit_2(capsys, "simulate", "duffing", "--out", tmp_path / "s.csv", "--noise-reference", "rms")
     assert "--noise-reference does not apply here: no noise is added without --snr" in line
+    line = _one_line_exit_2(capsys, "simulate", "duffing", "--out", tmp_path / "s.csv", "--seed", "5")
+    assert "--seed does not apply here: no noise is added without --snr; add --snr 20 or drop --seed" in line
     assert not (tmp_path / "s.csv").exists()
     line = _one_line_exit_2(capsys, "report", tmp_path, "--truth-variant", "paper")
     assert "--truth-variant does not apply here" in line

@@ -20,7 +20,7 @@ __all__ = ["check_options_apply", "DEFAULTS"]
 DEFAULTS: dict[str, dict[str, Any]] = {
     "fit": {"noisy_side": "force", "truth_variant": "paper", "bands_kind": "bootstrap", "bands_level": 0.95},
     "report": {"truth_variant": "paper"},
-    "simulate": {"noise_on": "force"},
+    "simulate": {"noise_on": "force", "seed": 0},
 }
 
 _SR_FLAGS = (("sr_engine", "--sr-engine"), ("sr_generations", "--sr-generations"),
@@ -74,7 +74,7 @@ def _check_report(a) -> None:
 
 def _check_simulate(a) -> None:
     if a.snr is None:
-        for key, flag in (("noise_on", "--noise-on"), ("noise_reference", "--noise-reference")):
+        for key, flag in (("noise_on", "--noise-on"), ("noise_reference", "--noise-reference"), ("seed", "--seed")):
             if getattr(a, key, None) is not None:
                 _refuse("simulate", flag, "no noise is added without --snr", f"add --snr 20 or drop {flag}")
 

@@ -53,7 +53,7 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                    help="where the noise goes: the forcing F (default, the paper) or the position x (appendix F)")
     s.add_argument("--noise-reference", choices=["std", "rms"], default=None,
                    help="sigma of the clean signal: std (paper) or rms (authors' scripts, forcing)")
-    s.add_argument("--seed", type=cli_number("seed"), default=0, help=_SEED_HELP)
+    s.add_argument("--seed", type=cli_number("seed"), default=None, help=_SEED_HELP + "; the noise's (with --snr)")
     s.add_argument("--variant", default="paper", help="paper (default), scripts, or smooth (stick-slip)")
     s.add_argument("--t-end", type=cli_number("t_end"), default=40.0,
                    help=f"end time (default 40; at most {MAX_SIMULATE_SPAN:g}: about 1 s of integration per 1000)")
