@@ -472,3 +472,19 @@ def test_an_unknown_device_is_refused_for_every_method(tmp_path, capsys, duffing
     line = _one_line_exit_2(capsys, "fit", duffing_csv, "--out", tmp_path / "o", "--method", "poly-cc", "--device",
                             "tpu")
     assert line == "charcurves: error: unknown device 'tpu'; use --device cpu or cuda"
+
+
+def test_select_refuses_a_family_or_a_record_given_twice(tmp_path, capsys, duffing_csv):
+    line = _one_line_exit_2(capsys, "select", duffing_csv, "--families", "separable,separable")
+    assert "--families names 'separable' twice; give each family once" in line
+    line = _one_line_exit_2(capsys, "select", duffing_csv, duffing_csv, "--families", "separable")
+    assert f"the record {duffing_csv!r} is given twice; give each record once" in line
+
+
+def test_validate_refuses_an_out_that_is_a_file_before_the_free_runs(tmp_path, capsys, fit_folder, duffing_csv):
+    target = tmp_path / "taken"
+    target.write_text("mine")
+    line = _one_line_exit_2(capsys, "validate", fit_folder / "model", duffing_csv, "--out", target)
+    assert line == (f"charcurves: error: --out {str(target)!r} is a file, not a directory; give a directory path for "
+                    "the results")
+    assert target.read_text() == "mine"
