@@ -488,3 +488,12 @@ def test_validate_refuses_an_out_that_is_a_file_before_the_free_runs(tmp_path, c
     assert line == (f"charcurves: error: --out {str(target)!r} is a file, not a directory; give a directory path for "
                     "the results")
     assert target.read_text() == "mine"
+
+
+def test_a_benchmark_snr_that_overflows_is_not_read_as_no_noise():
+    from charcurves._errors import ConfigError
+    from charcurves.experiments import parse_snr_list
+
+    assert parse_snr_list("40,inf,+Infinity") == (40.0, float("inf"))
+    with pytest.raises(ConfigError, match=r"--snr values must be finite dB levels or inf, got '1e999'"):
+        parse_snr_list("40,1e999")
