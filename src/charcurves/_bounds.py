@@ -32,7 +32,7 @@ from typing import Any
 
 from ._errors import ConfigError
 
-__all__ = ["Bound", "BOUNDS", "THREADS_PER_CORE", "check_number", "cli_number", "range_text", "max_threads",
+__all__ = ["Bound", "BOUNDS", "THREADS_PER_CORE", "check_number", "check_seeds", "cli_number", "range_text", "max_threads",
            "markdown_table"]
 
 #: threads (torch) and workers (processes) allowed per CPU core: more only slows the work down, and
@@ -197,3 +197,29 @@ def cli_number(name: str) -> Callable[[str], Any]:
 
     parse.__name__ = b.kind  # argparse names the type in its own messages
     return parse
+
+
+def check_seeds(seeds: Any, n_records: int) -> list[int] | None:
+    """``seeds`` as a list of ``n_records`` seeds, each an integer in the seed's range, or None
+    (then the estimator derives them); a ConfigError in one line otherwise (issue 50: fewer seeds
+    than records ended in an IndexError, a float seed was used as it was).
+
+    >>> check_seeds(range(2), 2)
+    [0, 1]
+    >>> try:
+    ...     check_seeds([0], 3)
+    ... except ValueError as exc:
+    ...     print(str(exc)[:36])
+    seeds has 1 entry for 3 records; giv
+    """
+    if seeds is None:
+        return None
+    if isinstance(seeds, (str, bytes, dict)) or not hasattr(seeds, "__iter__"):
+        raise ConfigError(f"seeds must be a sequence of integers, one per record, got {type(seeds).__name__}; give e.g. "
+                          f"seeds=list(range({n_records})), or leave seeds out")
+    out = list(seeds)
+    if len(out) != n_records:
+        raise ConfigError(f"seeds has {len(out)} entr{'y' if len(out) == 1 else 'ies'} for {n_records} record"
+                          f"{'' if n_records == 1 else 's'}; give one seed per record, e.g. "
+                          f"seeds=list(range({n_records})), or leave seeds out")
+    return [check_number("seed", s, label=f"seeds[{i}]") for i, s in enumerate(out)]

@@ -96,6 +96,9 @@ def _run(argv, state: dict) -> int:
         parser.print_help()
         return 2
     check_seed(getattr(args, "seed", None))
+    from ._applies import check_options_apply
+
+    check_options_apply(args)  # an option that does not apply is an error, not ignored (issue 50)
     handler = {"simulate": cmd_simulate, "fit": cmd_fit, "demo": cmd_demo, "validate": cmd_validate,
                "benchmark": cmd_benchmark, "select": cmd_select, "report": cmd_report}[args.command]
     return handler(args)

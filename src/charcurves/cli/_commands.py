@@ -88,8 +88,11 @@ def cmd_validate(a) -> int:
     1 with one line on stderr: the command worked and its verdict is a failure (2 stays "fix the
     command", 130 "interrupted"), so scripts and CI can tell a model that fails from a typo."""
     from ..simulate import validate_cli
+    from ._common import check_out_dir
     from ._fit import time_column
 
+    if a.out is not None:
+        check_out_dir(a.out)  # before the free runs: a file there must not cost them (it was found after 100 s)
     out = validate_cli(a.model, a.csv, rows=a.rows, time_col=time_column(a.time_col), x_col=a.x_col,
                        force_col=a.force_col, sample_rate=a.sample_rate, hold=a.hold, substeps=a.substeps,
                        out_dir=a.out, init_window=a.init_window)

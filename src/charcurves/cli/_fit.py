@@ -155,6 +155,11 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
     if truth is not None:
         errors = curve_errors(model, truth)
         result["curve_rmse"] = errors
+        from ._truth import truth_mismatch
+
+        mismatch = truth_mismatch(model, truth, errors)
+        if mismatch:
+            result["warnings"].append(mismatch)
     bad = non_finite_paths(result)
     if bad:
         result["non_finite"] = bad  # the numbers written as null, by path
@@ -288,6 +293,12 @@ def cmd_fit(a) -> int:
     quality = records[0].quality_warnings() if len(records) == 1 else \
         [f"{path}: {w}" for path, r in zip(paths, records) for w in r.quality_warnings()]
     source = source_path(paths[0], a.out) if len(paths) == 1 else [source_path(p, a.out) for p in paths]
+    from ._cost import record_cost_warnings
+
+    oe = a.objective == "output-error" or (a.objective in (None, "auto") and not records[0].has_derivatives)
+    cost = record_cost_warnings(sum(r.n_samples for r in records), allow_long=a.long_record, output_error=oe)
+    for line in cost:  # before the fit, not only in result.json after it
+        warn(line)
     truth = None
     if a.truth:
         from ..systems import get_system

@@ -66,11 +66,11 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     s.add_argument("system", choices=SYSTEM_NAMES, help="which system: " + ", ".join(SYSTEM_NAMES))
     s.add_argument("--out", required=True, help="output CSV file")
     s.add_argument("--snr", type=cli_number("snr_db"), default=None, help=ranged("snr_db", "noise level in dB (default: no noise)"))
-    s.add_argument("--noise-on", choices=["force", "state"], default="force",
+    s.add_argument("--noise-on", choices=["force", "state"], default=None,
                    help="where the noise goes: the forcing F (default, the paper) or the position x (appendix F)")
     s.add_argument("--noise-reference", choices=["std", "rms"], default=None,
                    help="sigma of the clean signal: std (paper) or rms (authors' scripts, forcing)")
-    s.add_argument("--seed", type=cli_number("seed"), default=0, help=_SEED_HELP)
+    s.add_argument("--seed", type=cli_number("seed"), default=None, help=_SEED_HELP + "; the noise's (with --snr)")
     s.add_argument("--variant", default="paper", help="paper (default), scripts, or smooth (stick-slip)")
     s.add_argument("--t-end", type=cli_number("t_end"), default=40.0,
                    help=f"end time (default 40; at most {MAX_SIMULATE_SPAN:g}: about 1 s of integration per 1000)")
@@ -100,7 +100,7 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     f.add_argument("--free-gain", action="store_true", help="learn the input gain g")
     f.add_argument("--gauge", default=None,
                    help="curve(s) anchored at 0, e.g. f1 (default: the family's, separable f2, two-dof f2,f4)")
-    f.add_argument("--noisy-side", choices=["force", "acceleration"], default="force",
+    f.add_argument("--noisy-side", choices=["force", "acceleration"], default=None,
                    help="with --free-gain: which measured side carries the noise and is regressed on "
                         "(force: the paper's loss; acceleration: noise on the measured state)")
     f.add_argument("--preset", default="default", help="training preset: default or paper")
@@ -129,9 +129,12 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     f.add_argument("--force-col", default="F", help="the forcing column (default F)")
     f.add_argument("--sample-rate", type=cli_number("sample_rate"), default=None, help=_RATE_HELP)
     f.add_argument("--rows", type=_rows, default=None, help="START:STOP rows to use")
+    f.add_argument("--long-record", action="store_true",
+                   help="fit a record of more than 5,000,000 samples all the same (refused without it; from "
+                        "1,000,000 a warning says the cost)")
     f.add_argument("--truth", default=None,
                    help=f"benchmark system ({', '.join(SYSTEM_NAMES)}) to compare the curves with")
-    f.add_argument("--truth-variant", default="paper", help="parameter set of --truth (default paper)")
+    f.add_argument("--truth-variant", default=None, help="parameter set of --truth (default paper)")
     f.add_argument("--threads", type=cli_number("threads"), default=None,
                    help=ranged("threads", "torch threads (default: 1 per process)"))
     f.add_argument("--device", default="cpu", help="torch device of the neural fits: cpu (default) or cuda")
@@ -157,9 +160,9 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                    help=ranged("bands", "uncertainty bands of the curves (result.json, curves.png): the fit's posterior "
                                         "(--bands or --bands posterior; least-squares fits by equation error) or an "
                                         "ensemble of N bootstrap refits (--bands N)"))
-    f.add_argument("--bands-kind", choices=["bootstrap", "seeds"], default="bootstrap",
+    f.add_argument("--bands-kind", choices=["bootstrap", "seeds"], default=None,
                    help="ensemble of --bands: wild residual bootstrap of the forcing (default) or training seeds")
-    f.add_argument("--bands-level", type=cli_number("bands_level"), default=0.95,
+    f.add_argument("--bands-level", type=cli_number("bands_level"), default=None,
                    help=ranged("bands_level", "coverage level of --bands (default 0.95)"))
     f.add_argument("--report", action="store_true",
                    help="also write report.html: one self-contained page with the equation, curves, diagnostics, "
@@ -172,7 +175,7 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                    help="HTML file to write (default: report.html in the fit folder)")
     r.add_argument("--truth", default=None,
                    help=f"benchmark system ({', '.join(SYSTEM_NAMES)}) whose true curves to draw and compare with")
-    r.add_argument("--truth-variant", default="paper", help="variant of --truth (default paper)")
+    r.add_argument("--truth-variant", default=None, help="variant of --truth (default paper)")
 
     v = sub.add_parser("validate", help="free-run a saved model on a record; RMSE and a figure")
     v.add_argument("model", help="model directory (the model/ that fit writes)")

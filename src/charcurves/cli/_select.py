@@ -23,6 +23,15 @@ def run_select(a, *, say, check_out, fit=None) -> int:
     families = [f.strip() for f in a.families.split(",") if f.strip()]
     if not families:
         raise ConfigError("--families is empty; give e.g. --families separable,position-damping")
+    twice = sorted({f for f in families if families.count(f) > 1})
+    if twice:  # the last one won silently before (issue 50 class: names given twice)
+        raise ConfigError(f"--families names {twice[0]!r} twice; give each family once, e.g. "
+                          "--families separable,position-damping")
+    real = [os.path.realpath(p) for p in a.csv]
+    same = sorted({p for p, r in zip(a.csv, real) if real.count(r) > 1})
+    if same:  # the other-record loop would validate a record on itself
+        raise ConfigError(f"the record {same[0]!r} is given twice; give each record once (other initial conditions "
+                          "or forcings of the same system)")
     if a.members < MIN_MEMBERS:
         raise ConfigError(f"--members must be at least {MIN_MEMBERS} to measure the curves' spread, got {a.members}")
     if a.out is not None:

@@ -6,7 +6,8 @@ import numpy as np
 
 from .._errors import DataError
 
-__all__ = ["check_rows", "gap_warnings", "signal_warnings", "lag1", "GAP_FACTOR", "NOISE_LAG1"]
+__all__ = ["check_rows", "gap_warnings", "signal_warnings", "lag1", "GAP_FACTOR", "NOISE_LAG1", "OFFSET_WARN",
+           "OFFSET_REFUSE", "STEP_RANGE", "check_offset", "check_time_step", "offset_warnings", "time_unit_warnings"]
 
 #: A time step this many times the median step is a gap (:meth:`Trajectory.quality_warnings`).
 GAP_FACTOR = 10.0
@@ -15,6 +16,72 @@ GAP_FACTOR = 10.0
 #: 0.5 at 0 dB and 0.1 at -10 dB). The lag-1 autocorrelation of the differences is no test: it is
 #: near -0.5 already for 20 dB noise on x, a record the spline and Savitzky-Golay differentiators fit.
 NOISE_LAG1 = 0.3
+
+
+#: A state whose median lies more than this many standard deviations from 0 is warned about: the
+#: gauge (f2(0) = 0) then lies outside the data and the curves must extrapolate to it (issue 50:
+#: the Duffing record at 30 dB shifted by 10 fits nn-cc at 787 times its noise floor, unshifted 0.88).
+OFFSET_WARN = 5.0
+#: ... and refused beyond this many: float64 then keeps fewer than 10 of its 16 digits for the motion,
+#: and differences (derivatives) lose more.
+OFFSET_REFUSE = 1e6
+
+
+def _offset_ratio(values: np.ndarray) -> tuple[float, float, float]:
+    v = np.asarray(values, dtype=float)
+    centre = float(np.median(v))
+    spread = float(np.std(v - centre))  # about the median: no cancellation against the offset
+    ratio = abs(centre) / spread if spread > 0 else 0.0
+    return ratio, centre, spread
+
+
+def check_offset(name: str, values: np.ndarray) -> None:
+    """Refuse a state whose offset swamps its motion in float64 (more than :data:`OFFSET_REFUSE`
+    standard deviations from 0), naming the offset to subtract."""
+    ratio, centre, spread = _offset_ratio(values)
+    if ratio > OFFSET_REFUSE and spread > 64 * np.finfo(float).eps * abs(centre):  # else x is constant: its own check
+        raise DataError(f"{name} is offset by {centre:.6g}, {ratio:.3g} times its motion (standard deviation "
+                        f"{spread:.3g}): float64 keeps too few digits of the motion; subtract the offset "
+                        f"({name} - {centre:.6g}) and fit again")
+
+
+def offset_warnings(name: str, values: np.ndarray) -> list[str]:
+    ratio, centre, spread = _offset_ratio(values)
+    if ratio > OFFSET_WARN:
+        return [f"{name} is centred at {centre:.6g}, {ratio:.3g} standard deviations from 0: the curves of {name} are "
+                f"anchored at {name} = 0, outside the data, and must extrapolate to it, which degrades the fit; "
+                f"subtract the offset ({name} - {centre:.6g}) unless {name} = 0 is the physical origin"]
+    return []
+
+
+#: the median time step a record may have: the reciprocals of the sample-rate bounds (1e-9 ... 1e12 Hz,
+#: charcurves._bounds); beyond them x' and x'' leave float64's comfortable range (a step of 5e-14
+#: fitted at 7e7 times its noise floor)
+STEP_RANGE = (1e-12, 1e9)
+
+
+def check_time_step(t: np.ndarray) -> None:
+    """Refuse a record whose median time step lies outside :data:`STEP_RANGE`, naming the fix."""
+    steps = np.diff(np.asarray(t, dtype=float))
+    if not steps.size:
+        return
+    step = float(np.median(steps))
+    lo, hi = STEP_RANGE
+    if not lo <= step <= hi:
+        raise DataError(f"the median time step is {step:.3g}, outside {lo:g} ... {hi:g} (the sample rates "
+                        f"{1 / hi:g} ... {1 / lo:g} Hz that charcurves computes derivatives for); rescale t to "
+                        "seconds (or another unit that brings the step into range)")
+
+
+def time_unit_warnings(t: np.ndarray) -> list[str]:
+    """A step of 1 or more time units looks like t in milliseconds (or samples): derivatives and
+    curves are per unit of t, so the curves' scale (and any fixed gain) changes with the unit."""
+    steps = np.diff(np.asarray(t, dtype=float))
+    step = float(np.median(steps)) if steps.size else 0.0
+    if step >= 1.0:
+        return [f"the time step is {step:.6g} time units: if t is in milliseconds (or sample numbers), convert it to "
+                "seconds (t / 1000), since x', x'' and the curves are per unit of t"]
+    return []
 
 
 def check_rows(rows: slice, n_all: int) -> None:

@@ -10,7 +10,8 @@ from typing import Any, cast
 import numpy as np
 
 from .._errors import ConfigError, DataError
-from ._quality import check_rows, gap_warnings, signal_warnings
+from ._quality import (check_offset, check_rows, check_time_step, gap_warnings, offset_warnings, signal_warnings,
+                       time_unit_warnings)
 
 __all__ = ["Trajectory", "MultiTrajectory", "MIN_SAMPLES", "MAX_MAGNITUDE"]
 
@@ -98,7 +99,7 @@ class _SampledRecord:
         return dataclasses.replace(cast(Any, self), **changes)  # the subclasses are dataclasses
 
     def _gap_warnings(self) -> list[str]:
-        return gap_warnings(self.t)
+        return gap_warnings(self.t) + time_unit_warnings(self.t)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -153,6 +154,9 @@ class Trajectory(_SampledRecord):
                 f"time {what} at row {row} (t={t[row]:.6g} after {t[row - 1]:.6g}); "
                 "time stamps must be strictly increasing: sort the rows and drop duplicates"
             )
+        check_time_step(t)
+        if "x" in cols:
+            check_offset("x", cols["x"])
         for key, arr in cols.items():
             arr.setflags(write=False)
             object.__setattr__(self, key, arr)
@@ -288,7 +292,7 @@ class Trajectory(_SampledRecord):
         >>> Trajectory(t=t, x=np.sin(t), F=np.cos(t)).quality_warnings()
         []
         """
-        out = self._gap_warnings() + signal_warnings("x", self.x)
+        out = self._gap_warnings() + signal_warnings("x", self.x) + offset_warnings("x", self.x)
         if not np.any(self.F):
             out.append("the forcing F is zero everywhere: the curves then describe a free response "
                        "(x'' + f1 + f2 = 0); check --force-col if the system was forced")
@@ -364,6 +368,7 @@ class MultiTrajectory(_SampledRecord):
             row = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
             raise DataError(f"time does not increase at row {row}; time stamps must be strictly increasing: "
                             "sort the rows and drop duplicates")
+        check_time_step(t)
         t.setflags(write=False)
         object.__setattr__(self, "t", t)
         if not self.states or not self.forces:
@@ -378,6 +383,8 @@ class MultiTrajectory(_SampledRecord):
             return out
 
         object.__setattr__(self, "states", freeze(self.states, "state"))
+        for k, v in self.states.items():
+            check_offset(k, v)
         object.__setattr__(self, "forces", freeze(self.forces, "forcing"))
         for key in ("velocities", "accelerations"):
             d = getattr(self, key)
@@ -442,7 +449,7 @@ class MultiTrajectory(_SampledRecord):
         """As :meth:`Trajectory.quality_warnings`, for every state and forcing."""
         out = self._gap_warnings()
         for name, values in self.states.items():
-            out += signal_warnings(name, values)
+            out += signal_warnings(name, values) + offset_warnings(name, values)
         if not any(np.any(f) for f in self.forces.values()):
             out.append(f"the forcings {', '.join(self.forces)} are zero everywhere: the curves then describe a free "
                        "response; check the forcing columns if the system was forced")

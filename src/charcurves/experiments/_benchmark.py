@@ -89,8 +89,8 @@ def parse_snr_list(text: str) -> tuple[float, ...]:
             v = float(p)
         except ValueError:
             raise ConfigError(f"--snr must be comma-separated dB values such as 40,20,0, got {text!r}") from None
-        if math.isnan(v) or v == -math.inf:
-            raise ConfigError(f"--snr values must be finite dB levels or inf, got {p!r}")
+        if math.isnan(v) or v == -math.inf or (v == math.inf and p.lower().lstrip("+") not in ("inf", "infinity")):
+            raise ConfigError(f"--snr values must be finite dB levels or inf, got {p!r}")  # 1e999 is not 'inf'
         if v != math.inf:
             check_number("snr_db", v, label="each --snr level")
         out.append(v)

@@ -249,6 +249,9 @@ def ray_session(address: str | None, num_cpus: int | None = None, init_kwargs: M
             if sized:
                 raise ConfigError(f"ray_init_kwargs {sized} size a new Ray instance; a cluster ({address!r}) has its "
                                   "own size: drop them, or drop the address to start a private Ray")
+            from ._ray_probe import probe_address
+
+            probe_address(address)  # nothing there: one line in seconds, not Ray's endless retries
             try:
                 ray.init(address=address, **kw)
             except (ConnectionError, ValueError, RuntimeError) as exc:

@@ -94,12 +94,16 @@ def load_report_inputs(out_dir: str | os.PathLike) -> tuple[Any, dict, Any, Any]
     out_dir = os.fspath(out_dir)
     if not os.path.isdir(out_dir):
         raise ConfigError(f"cannot rebuild the report: {out_dir!r} is not a folder; give the --out of a benchmark run")
+    run_path = _need(out_dir, RUN_FILE)  # its own message when missing (a ConfigError is a ValueError too)
     try:
-        with open(_need(out_dir, RUN_FILE), encoding="utf-8") as fh:
+        with open(run_path, encoding="utf-8") as fh:
             run = json.load(fh)
     except ValueError as exc:
-        raise ConfigError(f"cannot rebuild the report: {os.path.join(out_dir, RUN_FILE)} is not valid JSON ({exc}); "
+        raise ConfigError(f"cannot rebuild the report: {run_path} is not valid JSON ({exc}); "
                           "restore the file or rerun the benchmark") from None
+    if not isinstance(run, dict):
+        raise ConfigError(f"cannot rebuild the report: {run_path} holds a JSON {type(run).__name__}, not the object "
+                          "a benchmark writes; restore the file or rerun the benchmark")
     if run.get("noise_on") == "state":  # Appendix F alone: no main sweep, no results.csv
         from ._results import empty_results_frame
 

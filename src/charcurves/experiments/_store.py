@@ -142,10 +142,32 @@ class ResultsStore:
         os.makedirs(d, exist_ok=True)
         self._lock = threading.Lock()
         self._con = sqlite3.connect(self.path, timeout=timeout, isolation_level=None, check_same_thread=False)
-        self._con.execute("PRAGMA journal_mode=WAL")
-        self._con.execute("PRAGMA synchronous=FULL")
-        self._con.execute(f"PRAGMA busy_timeout={int(timeout * 1000)}")
-        self._create()
+        try:
+            self._refuse_foreign()
+            self._con.execute("PRAGMA journal_mode=WAL")
+            self._con.execute("PRAGMA synchronous=FULL")
+            self._con.execute(f"PRAGMA busy_timeout={int(timeout * 1000)}")
+            self._create()
+        except sqlite3.DatabaseError as exc:  # not SQLite at all, or a damaged file (issue 50)
+            self._con.close()
+            raise ConfigError(f"{self.path!r} is not a charcurves results store ({exc}); move it away or give "
+                              "another output folder") from None
+        except BaseException:
+            self._con.close()
+            raise
+
+    def _refuse_foreign(self) -> None:
+        """A SQLite file of someone else's (other tables, or a ``results`` table without our ``meta``)
+        is refused rather than written into."""
+        tables = {r[0] for r in self._con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        if not tables:
+            return
+        ours = "meta" in tables and "results" in tables and self._con.execute(
+            "SELECT value FROM meta WHERE key = 'schema_version'").fetchone() is not None
+        if not ours:
+            shown = ", ".join(sorted(tables)[:5]) + (" ..." if len(tables) > 5 else "")
+            raise ConfigError(f"{self.path!r} is a SQLite file but not a charcurves results store (its tables: "
+                              f"{shown}); move it away or give another output folder")
 
     # ------------------------------------------------------------------ schema
     def _create(self) -> None:

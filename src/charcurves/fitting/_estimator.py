@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .._bounds import check_number
+from .._bounds import check_number, check_seeds
 from .._errors import ConfigError, NotFittedError
 from .._params import Params
 from ._legacy import from_legacy, legacy_options
@@ -210,6 +210,8 @@ class CharacteristicCurves(Params):
         ``threads`` holds for the whole fit (warm start, training, output error), so the bytes of
         the result do not depend on the environment's OMP_NUM_THREADS."""
         self.check()  # the thread count among the rest, before it is used
+        trajectories = list(trajectories)
+        seeds = check_seeds(seeds, len(trajectories))  # one integer seed per record (issue 50)
         with torch_threads(self.threads):
             if self.tests_priors():  # nothing asked: test the parities, impose what the record supports
                 models = fit_many_auto(self, trajectories, seeds, default=True)
@@ -251,6 +253,10 @@ class CharacteristicCurves(Params):
         check_number("seed", self.random_state, label="the seed (random_state, --seed)")
         if self.threads is not None:
             check_number("threads", self.threads)
+        if self.device != "cpu":  # a device that does not exist, for every method (poly-cc took "tpu" silently)
+            from ._pipeline import check_device
+
+            check_device(self.device)
         for name in ("free_gain", "exclude_sticking"):  # free_gain="False" would turn the gain on
             value = getattr(m, name)
             if not isinstance(value, (bool, np.bool_)):

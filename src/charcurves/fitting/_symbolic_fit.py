@@ -286,21 +286,28 @@ def _fit_sr_cc(template, record, D, mask, method, options, sr_options, random_st
     results, history = {}, []
     scale = float(np.sqrt(np.mean(y**2))) or 1.0
     it = 0
-    for it in range(1, n_outer + 1):
-        change = 0.0
-        # the paper's order: the position curve first (the velocity curve starts at 0)
-        for k, name in enumerate(_search_order(template)):
-            target = y - sum((vals[o] for o in template.curve_names if o != name), np.zeros_like(y))
-            res = engine.fit(args[name][:, None], target, ["z"], random_state=int(random_state) + 100 * it + k,
-                             operators=ops[name])
-            new = eval_expression(res.expression, [z], args[name][:, None])
-            if new is None:  # pragma: no cover - engines return finite models
-                continue
-            change = max(change, float(np.sqrt(np.mean((new - vals[name]) ** 2))) / scale)
-            vals[name], exprs[name], results[name] = new, res.expression, res
+    interrupted = None  # Ctrl-C or SIGTERM after a search returned: keep the curves found so far
+    try:
+        for it in range(1, n_outer + 1):
+            change = 0.0
+            # the paper's order: the position curve first (the velocity curve starts at 0)
+            for k, name in enumerate(_search_order(template)):
+                target = y - sum((vals[o] for o in template.curve_names if o != name), np.zeros_like(y))
+                res = engine.fit(args[name][:, None], target, ["z"], random_state=int(random_state) + 100 * it + k,
+                                 operators=ops[name])
+                new = eval_expression(res.expression, [z], args[name][:, None])
+                if new is None:  # pragma: no cover - engines return finite models
+                    continue
+                change = max(change, float(np.sqrt(np.mean((new - vals[name]) ** 2))) / scale)
+                vals[name], exprs[name], results[name] = new, res.expression, res
+            history.append({n: str(exprs[n]) for n in template.curve_names})
+            if it > 1 and change <= tol:
+                break
+    except KeyboardInterrupt:
+        if not results:
+            raise  # no search returned yet: there is no model to keep
+        interrupted = f"interrupted (Ctrl-C or SIGTERM) in outer iteration {it} of {n_outer}"
         history.append({n: str(exprs[n]) for n in template.curve_names})
-        if it > 1 and change <= tol:
-            break
     # split constants off the univariate parts: the gauge decides where the constant goes
     constant = 0.0
     parts_z = {}
@@ -325,6 +332,8 @@ def _fit_sr_cc(template, record, D, mask, method, options, sr_options, random_st
         "operators": {n: list(o) for n, o in ops.items()},
         "sr": {n: r.summary() for n, r in results.items()},
     }
+    if interrupted:
+        info.update(interrupted=True, stopped_by=interrupted)  # the pipeline skips what follows
     meta = {n: {"source": "sr-cc", "expression": str(parts_z[n])} for n in template.curve_names}
     return _build(template, record, D, mask, parts_z, constant, gain, method, info, meta, g0=g0, t0=t0)
 

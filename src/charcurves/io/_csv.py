@@ -7,6 +7,7 @@ import io
 import json
 import math
 import os
+import stat
 from typing import Any
 
 import numpy as np
@@ -14,12 +15,25 @@ import numpy as np
 from .._errors import DataError
 from ._files import atomic_write_bytes, current_umask, make_temp_dir
 
-__all__ = ["read_csv_columns", "write_csv_columns", "json_bytes", "json_safe", "non_finite_paths",
+#: columns a record's CSV may have: a record has a handful (t, x, v, a, F per degree of freedom);
+#: a header wider than this is refused before its cells are read (issue 50: 200 000 columns hung)
+MAX_COLUMNS = 1000
+
+__all__ = ["MAX_COLUMNS", "read_csv_columns", "write_csv_columns", "json_bytes", "json_safe", "non_finite_paths",
            "atomic_write_bytes", "current_umask", "make_temp_dir"]  # the last three live in _files
 
 
 def _read_text(path: str | os.PathLike) -> str:
     p = os.fspath(path)
+    try:
+        mode = os.stat(p).st_mode
+    except OSError:
+        mode = None  # open() below names the problem
+    if mode is not None and not stat.S_ISREG(mode) and not stat.S_ISDIR(mode):
+        kind = ("a named pipe (FIFO)" if stat.S_ISFIFO(mode) else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+                else "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
+        raise DataError(f"{p!r} is {kind}, not a regular file (reading it could block or never end); "
+                        "save the data to a CSV file first and give that file")
     try:
         with open(p, "rb") as fh:
             raw = fh.read()
@@ -89,6 +103,10 @@ def read_csv_columns(path: str | os.PathLike) -> dict[str, np.ndarray]:
             f"file {p!r} has no header row (its first line is numbers); add a header such as t,x,F"
         )
     width = len(header)
+    if width > MAX_COLUMNS:
+        raise DataError(f"file {p!r} has {width} columns, more than the {MAX_COLUMNS} a record may have; keep the "
+                        "columns of the record (t, x, F, ...) and drop the others")
+    _refuse_lookalike_numbers(text, p, body, body_lines)
     for i, r in enumerate(body):
         if len(r) != width:
             raise DataError(
@@ -96,10 +114,12 @@ def read_csv_columns(path: str | os.PathLike) -> dict[str, np.ndarray]:
                 "fix the ragged row (every row needs one value per column)"
             )
     names: list[str] = []
+    seen: set[str] = set()  # linear in the width (a list made 200 000 columns quadratic)
     for j, h in enumerate(header):
         name = h if h else f"column{j + 1}"
-        if name in names:
+        if name in seen:
             raise DataError(f"column name {name!r} appears twice in {p!r}; give unique column names")
+        seen.add(name)
         names.append(name)
     out: dict[str, np.ndarray] = {}
     for j, name in enumerate(names):
@@ -120,6 +140,26 @@ def read_csv_columns(path: str | os.PathLike) -> dict[str, np.ndarray]:
     if not out:
         raise DataError(f"file {p!r} has no data columns; give a CSV with columns such as t,x,F")
     return out
+
+
+def _refuse_lookalike_numbers(text: str, p: str, body: list[list[str]], body_lines: list[int]) -> None:
+    """Refuse cells that Python's and numpy's float() read as numbers but a CSV of measurements
+    never means as one: digit groups with underscores (``1_5`` reads as 15) and non-ASCII digits
+    (Arabic-Indic ``١٢`` reads as 12). One scan of the text in C; the row is found only on a hit."""
+    start = text.find("\n") + 1  # the header may hold any name
+    rest = text[start:]
+    if rest.isascii() and "_" not in rest:
+        return
+    for r, line in zip(body, body_lines):
+        for c in r:
+            if "_" in c or not c.isascii():
+                cell = c.strip()
+                if (cell.isascii() and "_" not in cell) or not _is_number(cell):
+                    continue  # plain, or not a number to float() either: the usual "is not a number" below
+                shown = cell if len(cell) <= 20 else cell[:17] + "..."
+                why = ("an underscore between digits" if cell.isascii() else "characters other than ASCII digits")
+                raise DataError(f"line {line} of {p!r}: {shown!r} is not a plain decimal number ({why}); write "
+                                "numbers with the digits 0-9, '.' and an optional exponent, e.g. 15 or 1.5e3")
 
 
 def _is_number(s: str) -> bool:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._errors import ConfigError
 from ..templates import EquationTemplate
 from ._model import FittedModel
 
@@ -30,8 +31,13 @@ def finish_model(template: EquationTemplate, method: str, curves: dict, gain: fl
     ('demo', 0.0, 0.0)
     """
     pinned = {n: c.pinned_at_zero for n, c in curves.items()}
-    raw0 = {n: float(c.raw(np.array([0.0]))[0]) for n, c in curves.items()}
-    shifts, new_off = template.normalise(raw0, pinned, offsets)
+    with np.errstate(all="ignore"):  # a basis such as 1/z is infinite at 0: only a gauge there is an error
+        raw0 = {n: float(c.raw(np.array([0.0]))[0]) for n, c in curves.items()}
+        shifts, new_off = template.normalise(raw0, pinned, offsets)
+    bad = [n for n in curves if not np.isfinite(shifts.get(n, 0.0))]
+    if bad:
+        raise ConfigError(f"curve {bad[0]} is not finite at 0 (value {raw0[bad[0]]}), where the gauge anchors it "
+                          f"({bad[0]}(0) = 0); give functions that are finite at 0, or anchor another curve (--gauge)")
     for n, c in curves.items():
         c.shift = shifts[n]
     scal = dict(scalars)

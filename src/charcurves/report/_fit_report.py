@@ -84,7 +84,10 @@ def load_fit(path: str | os.PathLike):
         except (OSError, UnicodeDecodeError, ValueError, RecursionError):
             raise ModelFileError(f"{result_path!r} is not readable JSON; delete it to report the model alone, "
                                  "or re-fit") from None
-        if not isinstance(result, dict) or result.get("method") not in (None, model.method):
+        from ._result_file import check_result_fields
+
+        check_result_fields(result, result_path)  # a field of another type: one line, not a TypeError later
+        if result.get("method") not in (None, model.method):
             result = None  # not this model's result.json
     if result and isinstance(result.get("bands"), dict) and result["bands"]:
         setattr(model, "bands", result["bands"])  # as selection.attach_bands does

@@ -235,9 +235,13 @@ class LinearPosterior:
         raw0, theta = {}, {}
         for nm, ph in phi0.items():
             theta[nm] = np.array([by_curve[nm].get(j, 0.0) for j in range(ph.shape[1])])
-            raw0[nm] = float(ph[0] @ theta[nm] + by_curve[nm].get("const", 0.0))
+            with np.errstate(all="ignore"):  # infinite at 0 (1/z): used only where a gauge anchors it
+                raw0[nm] = float(ph[0] @ theta[nm] + by_curve[nm].get("const", 0.0))
         names, off_keys, new_keys, S, O = self._gauge_map()
         inputs = np.array([raw0[nm] for nm in names] + [offs.get(e, 0.0) for e in off_keys])
+        # a curve infinite at 0 (a basis such as 1/z) that no gauge anchors there moves nothing
+        idle = ~np.isfinite(inputs) & ~np.any(S != 0, axis=0) & ~np.any(O != 0, axis=0)
+        inputs[idle] = 0.0
         shifts = dict(zip(names, S @ inputs))
         new_off = dict(zip(new_keys, O @ inputs))
         curves = {nm: ph @ theta[nm] + by_curve[nm].get("const", 0.0) + shifts[nm] for nm, ph in feats.items()}
@@ -267,6 +271,8 @@ class LinearPosterior:
                 Jin[names.index(owner), j] = 1.0 if key == "const" else phi0[owner][0, key]
                 if owner in direct:
                     direct[owner][:, j] = 1.0 if key == "const" else feats[owner][:, key]
+        idle = ~np.any(S != 0, axis=0) & ~np.any(O != 0, axis=0)  # inputs no gauge moves (e.g. 1/z at 0)
+        Jin[idle & ~np.all(np.isfinite(Jin), axis=1)] = 0.0
         jc = {nm: (direct[nm] + (S[names.index(nm)] @ Jin)[None, :]) @ D for nm in feats}
         dO = O @ Jin
         for r, e in enumerate(new_keys):
