@@ -141,13 +141,15 @@ def test_json_bytes_writes_standard_json_with_null_for_non_finite_numbers():
 
 # ---------------------------------------------------------------------- permissions
 @pytest.mark.parametrize("umask", [0o022, 0o002, 0o077])
-def test_every_file_and_folder_written_follows_the_umask(tmp_path, record, umask):
+def test_every_file_and_folder_written_follows_the_umask(tmp_path, record, umask, capsys):
     csv = _write(tmp_path / "d.csv", record)
     out = tmp_path / "o"
-    code = subprocess.run([sys.executable, "-c", f"import os, sys; os.umask({umask}); from charcurves.cli import main; "
-                           f"sys.exit(main(sys.argv[1:]))", "fit", csv, "--out", str(out), *FAST],
-                          env=dict(os.environ, OMP_NUM_THREADS="1"), capture_output=True, text=True, timeout=300)
-    assert code.returncode == 0, code.stderr
+    old = os.umask(umask)  # in this process: the writers read the umask when they write (current_umask)
+    try:
+        code, err, _ = _fit(capsys, csv, out)
+    finally:
+        os.umask(old)
+    assert code == 0, err
     written = [p for p in out.rglob("*")]
     assert {p.name for p in written} >= {"result.json", "timing.json", "summary.txt", "model.json"}
     for p in written:

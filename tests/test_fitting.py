@@ -132,11 +132,11 @@ def test_paper_preset_is_the_papers_protocol():
 
 
 def test_paper_preset_short_run_uses_the_penalty(duffing_20db):
-    preset = PRESETS["paper"].replace(adam_steps=300)
+    preset = PRESETS["paper"].replace(adam_steps=100)  # the layout and the gauge, not the accuracy, are checked
     model = cc.fit(duffing_20db, method="nn-cc+sym", preset=preset, random_state=0, threads=1)
     f1 = model.curves["f1"]
     assert f1.spec.symmetry_mode == "penalty" and not f1.pinned_at_zero
-    assert model.info["adam_steps"] == 300
+    assert model.info["adam_steps"] == 100
     # post-hoc gauge: f2(0) = 0 exactly, and no separate constant
     assert float(model.curves["f2"](np.array([0.0]))[0]) == pytest.approx(0.0, abs=1e-6)
     assert model.offset == 0.0

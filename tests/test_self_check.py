@@ -353,7 +353,7 @@ def test_the_residual_tests_are_in_result_json_the_summary_and_the_report(tmp_pa
 
 
 def test_the_documented_rates_are_the_committed_benchmark():
-    """docs/selection.md quotes benchmarks/results/self_check.json (benchmarks/bench_self_check.py)."""
+    """docs/self-check.md quotes benchmarks/results/self_check.json (benchmarks/bench_self_check.py)."""
     from pathlib import Path
 
     from charcurves.fitting import RESIDUAL_LEVEL
@@ -368,7 +368,7 @@ def test_the_documented_rates_are_the_committed_benchmark():
     assert rows["drag, cubic basis for f1, 20 dB on F"]["loss_check_flagged"] == 0.0
     assert rows["drag, Duffing basis, 20 dB on F"]["flagged"] == 1.0
     assert rows["asymmetric spring, odd prior on f2, 20 dB on F"]["flagged"] == 1.0
-    page = " ".join((root / "docs" / "selection.md").read_text(encoding="utf-8").split())
+    page = " ".join((root / "docs" / "self-check.md").read_text(encoding="utf-8").split())
     assert "| drag, a cubic for f1, 20 dB on F | **95 %** | 0 % | 1.05 |" in page
     assert "overall level of **0.3 %**" in page
 
