@@ -39,7 +39,7 @@ __all__ = ["fit_state_space", "START_NAMES"]
 START_NAMES = ("growing", "linear")
 
 
-def fit_state_space(template, record, *, start: str = "growing", n_starts: int = 4, seed: int = 0, degree: int = 6,
+def fit_state_space(template, record, *, start: str = "growing", n_starts: int = 4, seed: int = 0, degree: int = 10,
                     schedule=None, substeps: int | None = None, hold: str = "linear", max_iter: int = 40,
                     continuity: float = 10.0, time_budget: float = 600.0) -> StateSpaceModel:
     """Fit a :class:`~charcurves.templates.StateSpace` template with hidden states by output error.
@@ -47,8 +47,9 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     Parameters
     ----------
     template : StateSpace
-        The template, its measured map and curve representations (unset: polynomials of ``degree``;
-        curves anchored at 0 get a basis without a constant).
+        The template, its measured map and curve representations (unset: polynomials of ``degree``,
+        default 10 as :class:`~charcurves.curves.Polynomial`; curves anchored at 0 get a basis
+        without a constant).
     record : Trajectory or MultiTrajectory
         Uniformly sampled; the measured map names its columns (``x`` of a Trajectory, ``x1``... of
         a MultiTrajectory) and the template's forcings must be among its columns.
@@ -80,7 +81,7 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     >>> model.info["start"], model.info["hidden"], model.info["gauge_conditions"]
     ('growing', ['x1'], ['x1(t0) = 0'])
     """
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.process_time()
     if start not in START_NAMES:
         raise ConfigError(f"unknown start {start!r}; choose one of {', '.join(START_NAMES)}")
     if not hasattr(template, "analysis"):
@@ -123,10 +124,11 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     for k, (L, linear) in enumerate(stages):
         shared = [_renormalise(c, traj[..., c.arg_layout] if c.arg_layout is not None else
                                c.argument_values(fm, traj, cols), linear) for c in shared]
-        traj, gain, loss = _stage(fm, structure, shared, gain, traj, data_state, analysis, cols, dt, sub, hold, L,
-                                  max_iter, continuity, scale, started + time_budget)
+        traj, gain, loss, iterations = _stage(fm, structure, shared, gain, traj, data_state, analysis, cols, dt, sub,
+                                              hold, L, max_iter, continuity, scale, started + time_budget)
         log.append({"segment_length": int(L), "linear_curves": bool(linear),
-                    "loss": [float(v) for v in loss], "seconds": time.perf_counter() - started})
+                    "loss": [float(v) for v in loss], "lm_iterations": iterations,
+                    "seconds": time.perf_counter() - started})
         if time.perf_counter() - started > time_budget and k < len(stages) - 1:
             log[-1]["stopped"] = "time budget"
             break
@@ -143,7 +145,8 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
             "gauge_conditions": [f"{a}(0) = 0" for a in sorted(anchored)]
             + [f"{h}(t0) = {v:g}" for h, v in analysis.fixed_initial.items()]
             + (["g fixed"] if analysis.gain_fixed else []),
-            "substeps": sub, "hold": hold, "seconds": time.perf_counter() - started}
+            "substeps": sub, "hold": hold, "seconds": time.perf_counter() - started,
+            "cpu_seconds": time.process_time() - cpu_started}
     model = StateSpaceModel(template, structure, curves, float(gain[best]), dict(zip(fm.layout, x0.tolist())), info)
     model.info["free_run_rmse"] = rmse = model.free_run_rmse(record)
     model.info["warnings"] = [] if all(np.isfinite(v) for v in rmse.values()) else [
@@ -375,7 +378,7 @@ def _renormalise(c, u, linear):
 def _stage(fm, structure, shared, gain, traj, data_state, analysis, cols, dt, sub, hold, L, max_iter, continuity,
            scale, deadline):
     """One stage of multiple shooting with segments of ``L`` samples; returns the simulated states
-    ``(B, n, D)``, the gains and the data losses."""
+    ``(B, n, D)``, the gains, the data losses and the Levenberg-Marquardt iterations."""
     import torch
 
     from ..train import train
@@ -406,8 +409,8 @@ def _stage(fm, structure, shared, gain, traj, data_state, analysis, cols, dt, su
     for h in analysis.fixed_initial:
         frozen[problem.n_shared + fm.layout.index(h)] = True
     problem.frozen = frozen if bool(frozen.any()) else None
-    theta, _ = train(problem, theta0, adam_steps=0, adam_lr=0.0, lm_max_iter=int(max_iter), lm_tol=1e-6,
-                     stop_loss=0.0, lm_window=4, lm_deadline=deadline, lm_nielsen=True)
+    theta, tlog = train(problem, theta0, adam_steps=0, adam_lr=0.0, lm_max_iter=int(max_iter), lm_tol=1e-6,
+                        stop_loss=0.0, lm_window=4, lm_deadline=deadline, lm_nielsen=True)
     with torch.no_grad():
         loss = problem.residuals(theta)[:, :problem.n_data].pow(2).sum(dim=1).numpy()
     th = theta.double().numpy()
@@ -418,4 +421,4 @@ def _stage(fm, structure, shared, gain, traj, data_state, analysis, cols, dt, su
         gain = th[:, problem.gain_index].copy()
     new_traj = simulate_states(fm, shared, gain, th[:, problem.n_shared:problem.n_shared + D], cols, dt, sub, hold,
                                segments=(th[:, problem.n_shared:].reshape(B, S, D), starts, L))
-    return new_traj, gain, np.where(np.isfinite(loss), loss, np.inf)
+    return new_traj, gain, np.where(np.isfinite(loss), loss, np.inf), int(tlog.lm_iterations)
