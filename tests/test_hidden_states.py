@@ -142,3 +142,15 @@ def test_cli_refuses_bad_hidden_state_fits_with_one_line(tmp_path, capsys, extra
     assert main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0] and "Traceback" not in err[0]
+
+
+def test_a_fit_reports_its_cpu_seconds_and_iterations_per_stage_with_degree_10_curves_by_default():
+    from charcurves.fitting import fit_state_space
+
+    record = TwoTank().simulate(n_points=81, t_end=160.0, seed=0)
+    model = fit_state_space(StateSpace(TANKS, measured={"x2": "x"}), record, n_starts=1, schedule=(16, 40),
+                            max_iter=3, substeps=1)
+    assert [c.representation.degree for c in model.curves.values()] == [10, 10]
+    assert [c.coefficients.size for c in model.curves.values()] == [10, 10]  # the constant stored apart
+    assert [s["lm_iterations"] for s in model.info["stages"]] == [3, 3]  # capped by max_iter
+    assert 0.0 < model.info["cpu_seconds"]
