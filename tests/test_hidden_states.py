@@ -154,3 +154,6 @@ def test_a_fit_reports_its_cpu_seconds_and_iterations_per_stage_with_degree_10_c
     assert [c.coefficients.size for c in model.curves.values()] == [10, 10]  # the constant stored apart
     assert [s["lm_iterations"] for s in model.info["stages"]] == [3, 3]  # capped by max_iter
     assert 0.0 < model.info["cpu_seconds"]
+    fitted_start = model.free_run_rmse(record, initial=model.initial_state)
+    assert model.info["free_run_rmse_fitted_start"] == fitted_start
+    assert fitted_start["x2"] != model.info["free_run_rmse"]["x2"]  # the measured level's start differs

@@ -149,6 +149,8 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
             "cpu_seconds": time.process_time() - cpu_started}
     model = StateSpaceModel(template, structure, curves, float(gain[best]), dict(zip(fm.layout, x0.tolist())), info)
     model.info["free_run_rmse"] = rmse = model.free_run_rmse(record)
+    # the same run from the fitted initial state (measured entries as fitted, not the record's first samples)
+    model.info["free_run_rmse_fitted_start"] = model.free_run_rmse(record, initial=model.initial_state)
     model.info["warnings"] = [] if all(np.isfinite(v) for v in rmse.values()) else [
         "the free run of the whole record diverges from the fitted initial state (the segments fit, the "
         "model is not stable over the record); give more starts (n_starts), a longer last segment (schedule) "
