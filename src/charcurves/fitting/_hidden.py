@@ -112,10 +112,11 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     data_state = _measured_layout(fm, cols, analysis.measured, dt)  # (n, D) with NaN for hidden entries
     scale = np.array([np.nanstd(data_state[:, d]) if np.isfinite(data_state[:, d]).any() else np.nan
                       for d in range(fm.n_state)])
+    scale = _hidden_scales(fm, cols, scale, float(structure.gain))
     typical = float(np.nanmean(scale[np.isfinite(scale)])) if np.isfinite(scale).any() else 1.0
     scale = np.where(np.isfinite(scale) & (scale > 0), scale, typical)
     tau = _time_scale(cols, analysis.measured)
-    shared = _start_shared(fm, structure, reps, analysis, scale, tau, rng, B, start)
+    shared = _start_shared(fm, structure, reps, analysis, scale, tau, rng, B, start, data_state)
     gain = np.full(B, float(structure.gain))
     # the start's free run gives the hidden states' first guess
     traj = simulate_states(fm, shared, gain, _initial(fm, data_state, analysis, B), cols, dt, sub, hold)
@@ -284,6 +285,25 @@ def _measured_layout(fm, cols, measured, dt):
     return out
 
 
+def _hidden_scales(fm, cols, scale, gain: float):
+    """A hidden state that enters an equation as a known linear term beside a forcing (Bouc-Wen's
+    ``+ x2 = g*F``) has that forcing's size: its scale is ``|gain| std(F) / |coefficient|``."""
+    import sympy as sp
+
+    scale = scale.copy()
+    for d, name in enumerate(fm.layout):
+        if np.isfinite(scale[d]):
+            continue
+        for eq in fm.equations:
+            force = str(eq["input"].expr)
+            sym = [v for v in eq["known0"].expr.free_symbols if str(v) == name] if force in cols else []
+            a = sp.diff(eq["known0"].expr, sym[0]) if sym else sp.Integer(0)
+            if sym and a.is_number and float(a) != 0 and np.std(cols[force]) > 0:
+                scale[d] = abs(gain) * float(np.std(cols[force])) / abs(float(a))
+                break
+    return scale
+
+
 def _time_scale(cols, measured) -> float:
     x = np.asarray(cols[next(iter(measured.values()))], dtype=float)
     dt = float(np.median(np.diff(cols["t"])))
@@ -298,7 +318,44 @@ def _initial(fm, data_state, analysis, B):
     return np.repeat(y0[None], B, axis=0)
 
 
-def _start_shared(fm, structure, reps, analysis, scale, tau, rng, B, start):
+def _multiplier_size(m, fm, data_state):
+    """The std of a curve's multiplier on the data when it is a signal of measured entries about zero
+    mean (None for a number, a one-signed signal or one that needs a hidden state)."""
+    import sympy as sp
+
+    expr = sp.sympify(m)
+    names = [str(v) for v in expr.free_symbols]
+    if not names or not all(n in fm.layout for n in names):
+        return None
+    cols = [data_state[:, fm.layout.index(n)] for n in names]
+    if not all(np.isfinite(c).all() for c in cols):
+        return None
+    values = np.broadcast_to(sp.lambdify(list(expr.free_symbols), expr, "numpy")(*cols), cols[0].shape)
+    size = float(np.std(values))
+    # only a signal about zero mean: a constant times it integrates to a bounded state
+    return size if size > 0 and abs(float(np.mean(values))) < 0.5 * size else None
+
+
+def _restoring_sign(m, state, fm, signs):
+    """The sign of a constant curve ``c`` in ``state' + m*c = 0`` with ``m = a*v`` (``v`` the velocity
+    ``b__d1`` of a measured ``b``) that makes ``state`` (about ``-a*c*b``) restoring where it enters
+    ``b``'s equation as a known term of coefficient ``k``: ``-a*c*k > 0``. Else ``signs`` as given."""
+    import sympy as sp
+
+    expr = sp.sympify(m)
+    for v in expr.free_symbols:
+        base, _, order = str(v).partition("__d")
+        if order != "1" or not (sp.diff(expr, v)).is_number:
+            continue
+        for eq in fm.equations:
+            h = [w for w in eq["known0"].expr.free_symbols if str(w) == state]
+            k = sp.diff(eq["known0"].expr, h[0]) if h else sp.Integer(0)
+            if h and k.is_number and float(k) != 0:
+                return np.full(signs.shape, -float(np.sign(float(sp.diff(expr, v)) * float(k))))
+    return signs
+
+
+def _start_shared(fm, structure, reps, analysis, scale, tau, rng, B, start, data_state=None):
     """Linear curves of random slopes per start: magnitude from the signals' sizes and time scale,
     the sign restoring where the curve's argument is its own equation's state."""
     import sympy as sp
@@ -329,6 +386,16 @@ def _start_shared(fm, structure, reps, analysis, scale, tau, rng, B, start):
         center = np.zeros(B)
         half = np.full(B, 2.0 * size_u)
         c = _Curve(name, rep, structure.arguments[name], arg_layout, center, half, None)
+        size_m = _multiplier_size(m, fm, data_state) if data_state is not None and not pinned else None
+        if size_m is not None and arg_layout is not None and arg_layout == fm.layout.index(base):
+            # a curve of its own state times a signal (Bouc-Wen's f4(x2)*x1'): a line through 0 would
+            # leave a state that starts at 0 there; start it constant, the state then follows the signal
+            level = size_s / (size_m * tau ** int(k)) * 10.0 ** rng.uniform(-0.5, 0.5, B)
+            signs = _restoring_sign(m, base, fm, signs)
+            c.theta = _project(c, np.zeros((B, 64)), half, lambda z, b: np.full_like(z, signs[b] * level[b]), pinned)
+            c.domain = np.stack([-half, half], axis=1)
+            out.append(c)
+            continue
         c.theta = _project(c, np.zeros((B, 64)), half, lambda z, b: signs[b] * slope[b] * z, pinned)
         c.domain = np.stack([-half, half], axis=1)
         out.append(c)
