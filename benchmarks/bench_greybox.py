@@ -40,7 +40,7 @@ def nrmse(fitted, true, lo, hi) -> float:
     return float(np.sqrt(np.mean((np.asarray(fitted(z), dtype=float) - t) ** 2)) / np.std(t))
 
 
-def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False) -> dict:
+def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False, **fit) -> dict:
     from charcurves.curves import Basis
     from charcurves.fitting import fit_state_space
     from charcurves.systems import TwoTank
@@ -54,13 +54,17 @@ def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False) -> di
     curves = {n: Basis("z, z**2, z**3, z**4, z**5") for n in ("f1", "f2")} if anchored else {}
     template = StateSpace("x1' = g*F - f1(x1); x2' = f1(x1) - f2(x2)", measured={"x2": "x"}, **curves)
     t0 = time.perf_counter()
-    model = fit_state_space(template, record, start=start, n_starts=n_starts, seed=seed)
+    model = fit_state_space(template, record, start=start, n_starts=n_starts, seed=seed, **fit)
     seconds = time.perf_counter() - t0
+    sim = model.simulate(record)
     return {
         "case": "two-tank" + ("-anchored" if anchored else ""), "start": start, "seed": seed, "seconds": seconds,
+        **fit, "fit_cpu_seconds": model.info["cpu_seconds"], "x1_max_fitted": float(np.nanmax(sim["x1"])), "x1_max_true": float(clean["x1"].max()),
         "f1_nrmse": nrmse(model.curves["f1"], system.f1, clean["x1"].min(), clean["x1"].max()),
         "f2_nrmse": nrmse(model.curves["f2"], system.f2, clean["x2"].min(), clean["x2"].max()),
         "gain": model.gain, "free_run_rmse_train": model.info["free_run_rmse"]["x2"],
+        # the same free run from the fitted initial state (the measured level's too) instead of the record's
+        "free_run_rmse_train_fitted_start": model.free_run_rmse(record, initial=model.initial_state)["x2"],
         "free_run_rmse_test": model.free_run_rmse(test)["x2"],
         "noise_rmse_train": float(np.sqrt(np.mean((record.x - clean["x2"]) ** 2))),
         "stages": model.info["stages"], "gauges": model.info["gauge_freedoms"],
@@ -131,15 +135,21 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--bw-samples", type=int, default=1000)
     p.add_argument("--out", default=os.path.join(HERE, "results", "greybox"))
+    p.add_argument("--degree", type=int, default=None, help="curves' polynomial degree (two-tank; default the fit's)")
+    p.add_argument("--schedule", default=None, help="segment lengths, e.g. 16,64,256,1000 (two-tank)")
+    p.add_argument("--label", default=None, help="a label stored in each row")
     args = p.parse_args(argv)
+    fit = {k: v for k, v in (("degree", args.degree),
+                             ("schedule", [int(s) for s in args.schedule.split(",")] if args.schedule else None))
+           if v is not None}
     os.makedirs(args.out, exist_ok=True)
     path = os.path.join(args.out, "results.jsonl")
     for case in args.cases.split(","):
         for start in args.starts.split(","):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             try:
                 if case in ("two-tank", "two-tank-anchored"):
-                    row = two_tank(start, args.n_starts, args.seed, anchored=case.endswith("anchored"))
+                    row = two_tank(start, args.n_starts, args.seed, anchored=case.endswith("anchored"), **fit)
                 elif case == "two-dof-x1":
                     row = two_dof_x1(start, args.n_starts, args.seed)
                 elif case == "bouc-wen":
@@ -149,6 +159,9 @@ def main(argv=None) -> int:
             except Exception as exc:  # a failure of the library is a result too
                 row = {"case": case, "start": start, "error": f"{type(exc).__name__}: {exc}",
                        "seconds": time.perf_counter() - t0}
+            row["cpu_seconds_case"] = time.process_time() - c0  # fit and scoring, one thread
+            if args.label:
+                row["label"] = args.label
             with open(path, "a") as fh:
                 fh.write(json.dumps(row) + "\n")
             print(json.dumps({k: v for k, v in row.items() if k != "stages"}), flush=True)

@@ -142,3 +142,52 @@ def test_cli_refuses_bad_hidden_state_fits_with_one_line(tmp_path, capsys, extra
     assert main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0] and "Traceback" not in err[0]
+
+
+def test_a_fit_reports_its_cpu_seconds_and_iterations_per_stage_with_degree_10_curves_by_default():
+    from charcurves.fitting import fit_state_space
+
+    record = TwoTank().simulate(n_points=81, t_end=160.0, seed=0)
+    model = fit_state_space(StateSpace(TANKS, measured={"x2": "x"}), record, n_starts=1, schedule=(16, 40),
+                            max_iter=3, substeps=1)
+    assert [c.representation.degree for c in model.curves.values()] == [10, 10]
+    assert [c.coefficients.size for c in model.curves.values()] == [10, 10]  # the constant stored apart
+    assert [s["lm_iterations"] for s in model.info["stages"]] == [3, 3]  # capped by max_iter
+    assert 0.0 < model.info["cpu_seconds"]
+    fitted_start = model.free_run_rmse(record, initial=model.initial_state)
+    assert model.info["free_run_rmse_fitted_start"] == fitted_start
+    assert fitted_start["x2"] != model.info["free_run_rmse"]["x2"]  # the measured level's start differs
+
+
+def test_bouc_wen_start_scales_the_hidden_state_by_the_force_and_lets_it_move():
+    from charcurves.fitting import _hidden as H
+    from charcurves.fitting._hidden_model import record_table
+    from charcurves.templates import ForwardModel
+
+    system = BoucWen()
+    record = system.simulate(system.multisine(seed=0, period=300), seed=0)
+    template = StateSpace(BOUC_WEN, measured={"x1": "x"})
+    structure = template.structure()
+    fm = ForwardModel(structure)
+    analysis = template.analysis()
+    cols, dt = record_table(record, analysis.measured, structure.forces)
+    data = H._measured_layout(fm, cols, analysis.measured, dt)
+    measured_std = np.array([np.nanstd(data[:, d]) if np.isfinite(data[:, d]).any() else np.nan for d in range(3)])
+    scale = H._hidden_scales(fm, cols, measured_std, 1.0)
+    assert fm.layout == ["x1", "x1__d1", "x2"] and scale[2] == pytest.approx(np.std(record.F))  # + x2 = g*F
+    reps = {n: H._pinned(4) if n in analysis.anchored else H._representations(template, structure, 4)[n]
+            for n in structure.curve_names}
+    tau = H._time_scale(cols, analysis.measured)
+    start = {c.name: c for c in H._start_shared(fm, structure, reps, analysis, scale, tau, np.random.default_rng(0),
+                                                4, "growing", data)}
+    at0 = {n: c.values(np.zeros((4, 1)))[:, 0] for n, c in start.items()}
+    # f4 multiplies x1' (zero mean): a positive constant, so z = f4 * x1 restores x1; f3 multiplies
+    # |x1'| (one-signed) and stays a line through 0
+    assert (at0["f4"] > 1e4).all() and np.allclose(at0["f3"], 0.0, atol=1e-6)
+    u = np.linspace(-50.0, 50.0, 5)
+    assert np.ptp(start["f4"].values(np.broadcast_to(u, (4, 5))), axis=1).max() < 1e-6 * at0["f4"].min()
+    # the two-tank's hidden level enters no equation as a known term: no scale from the force
+    tanks = StateSpace(TANKS, measured={"x2": "x"})
+    tfm = ForwardModel(tanks.structure())
+    tcols, _ = record_table(TwoTank().simulate(n_points=101, t_end=100.0), {"x2": "x"}, ("F",))
+    assert np.isnan(H._hidden_scales(tfm, tcols, np.array([np.nan, 1.0]), 1.0)[0])

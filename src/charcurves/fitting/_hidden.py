@@ -39,7 +39,7 @@ __all__ = ["fit_state_space", "START_NAMES"]
 START_NAMES = ("growing", "linear")
 
 
-def fit_state_space(template, record, *, start: str = "growing", n_starts: int = 4, seed: int = 0, degree: int = 6,
+def fit_state_space(template, record, *, start: str = "growing", n_starts: int = 4, seed: int = 0, degree: int = 10,
                     schedule=None, substeps: int | None = None, hold: str = "linear", max_iter: int = 40,
                     continuity: float = 10.0, time_budget: float = 600.0) -> StateSpaceModel:
     """Fit a :class:`~charcurves.templates.StateSpace` template with hidden states by output error.
@@ -47,8 +47,9 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     Parameters
     ----------
     template : StateSpace
-        The template, its measured map and curve representations (unset: polynomials of ``degree``;
-        curves anchored at 0 get a basis without a constant).
+        The template, its measured map and curve representations (unset: polynomials of ``degree``,
+        default 10 as :class:`~charcurves.curves.Polynomial`; curves anchored at 0 get a basis
+        without a constant).
     record : Trajectory or MultiTrajectory
         Uniformly sampled; the measured map names its columns (``x`` of a Trajectory, ``x1``... of
         a MultiTrajectory) and the template's forcings must be among its columns.
@@ -80,7 +81,7 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     >>> model.info["start"], model.info["hidden"], model.info["gauge_conditions"]
     ('growing', ['x1'], ['x1(t0) = 0'])
     """
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.process_time()
     if start not in START_NAMES:
         raise ConfigError(f"unknown start {start!r}; choose one of {', '.join(START_NAMES)}")
     if not hasattr(template, "analysis"):
@@ -111,10 +112,11 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     data_state = _measured_layout(fm, cols, analysis.measured, dt)  # (n, D) with NaN for hidden entries
     scale = np.array([np.nanstd(data_state[:, d]) if np.isfinite(data_state[:, d]).any() else np.nan
                       for d in range(fm.n_state)])
+    scale = _hidden_scales(fm, cols, scale, float(structure.gain))
     typical = float(np.nanmean(scale[np.isfinite(scale)])) if np.isfinite(scale).any() else 1.0
     scale = np.where(np.isfinite(scale) & (scale > 0), scale, typical)
     tau = _time_scale(cols, analysis.measured)
-    shared = _start_shared(fm, structure, reps, analysis, scale, tau, rng, B, start)
+    shared = _start_shared(fm, structure, reps, analysis, scale, tau, rng, B, start, data_state)
     gain = np.full(B, float(structure.gain))
     # the start's free run gives the hidden states' first guess
     traj = simulate_states(fm, shared, gain, _initial(fm, data_state, analysis, B), cols, dt, sub, hold)
@@ -123,10 +125,11 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     for k, (L, linear) in enumerate(stages):
         shared = [_renormalise(c, traj[..., c.arg_layout] if c.arg_layout is not None else
                                c.argument_values(fm, traj, cols), linear) for c in shared]
-        traj, gain, loss = _stage(fm, structure, shared, gain, traj, data_state, analysis, cols, dt, sub, hold, L,
-                                  max_iter, continuity, scale, started + time_budget)
+        traj, gain, loss, iterations = _stage(fm, structure, shared, gain, traj, data_state, analysis, cols, dt, sub,
+                                              hold, L, max_iter, continuity, scale, started + time_budget)
         log.append({"segment_length": int(L), "linear_curves": bool(linear),
-                    "loss": [float(v) for v in loss], "seconds": time.perf_counter() - started})
+                    "loss": [float(v) for v in loss], "lm_iterations": iterations,
+                    "seconds": time.perf_counter() - started})
         if time.perf_counter() - started > time_budget and k < len(stages) - 1:
             log[-1]["stopped"] = "time budget"
             break
@@ -143,9 +146,12 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
             "gauge_conditions": [f"{a}(0) = 0" for a in sorted(anchored)]
             + [f"{h}(t0) = {v:g}" for h, v in analysis.fixed_initial.items()]
             + (["g fixed"] if analysis.gain_fixed else []),
-            "substeps": sub, "hold": hold, "seconds": time.perf_counter() - started}
+            "substeps": sub, "hold": hold, "seconds": time.perf_counter() - started,
+            "cpu_seconds": time.process_time() - cpu_started}
     model = StateSpaceModel(template, structure, curves, float(gain[best]), dict(zip(fm.layout, x0.tolist())), info)
     model.info["free_run_rmse"] = rmse = model.free_run_rmse(record)
+    # the same run from the fitted initial state (measured entries as fitted, not the record's first samples)
+    model.info["free_run_rmse_fitted_start"] = model.free_run_rmse(record, initial=model.initial_state)
     model.info["warnings"] = [] if all(np.isfinite(v) for v in rmse.values()) else [
         "the free run of the whole record diverges from the fitted initial state (the segments fit, the "
         "model is not stable over the record); give more starts (n_starts), a longer last segment (schedule) "
@@ -279,6 +285,25 @@ def _measured_layout(fm, cols, measured, dt):
     return out
 
 
+def _hidden_scales(fm, cols, scale, gain: float):
+    """A hidden state that enters an equation as a known linear term beside a forcing (Bouc-Wen's
+    ``+ x2 = g*F``) has that forcing's size: its scale is ``|gain| std(F) / |coefficient|``."""
+    import sympy as sp
+
+    scale = scale.copy()
+    for d, name in enumerate(fm.layout):
+        if np.isfinite(scale[d]):
+            continue
+        for eq in fm.equations:
+            force = str(eq["input"].expr)
+            sym = [v for v in eq["known0"].expr.free_symbols if str(v) == name] if force in cols else []
+            a = sp.diff(eq["known0"].expr, sym[0]) if sym else sp.Integer(0)
+            if sym and a.is_number and float(a) != 0 and np.std(cols[force]) > 0:
+                scale[d] = abs(gain) * float(np.std(cols[force])) / abs(float(a))
+                break
+    return scale
+
+
 def _time_scale(cols, measured) -> float:
     x = np.asarray(cols[next(iter(measured.values()))], dtype=float)
     dt = float(np.median(np.diff(cols["t"])))
@@ -293,7 +318,44 @@ def _initial(fm, data_state, analysis, B):
     return np.repeat(y0[None], B, axis=0)
 
 
-def _start_shared(fm, structure, reps, analysis, scale, tau, rng, B, start):
+def _multiplier_size(m, fm, data_state):
+    """The std of a curve's multiplier on the data when it is a signal of measured entries about zero
+    mean (None for a number, a one-signed signal or one that needs a hidden state)."""
+    import sympy as sp
+
+    expr = sp.sympify(m)
+    names = [str(v) for v in expr.free_symbols]
+    if not names or not all(n in fm.layout for n in names):
+        return None
+    cols = [data_state[:, fm.layout.index(n)] for n in names]
+    if not all(np.isfinite(c).all() for c in cols):
+        return None
+    values = np.broadcast_to(sp.lambdify(list(expr.free_symbols), expr, "numpy")(*cols), cols[0].shape)
+    size = float(np.std(values))
+    # only a signal about zero mean: a constant times it integrates to a bounded state
+    return size if size > 0 and abs(float(np.mean(values))) < 0.5 * size else None
+
+
+def _restoring_sign(m, state, fm, signs):
+    """The sign of a constant curve ``c`` in ``state' + m*c = 0`` with ``m = a*v`` (``v`` the velocity
+    ``b__d1`` of a measured ``b``) that makes ``state`` (about ``-a*c*b``) restoring where it enters
+    ``b``'s equation as a known term of coefficient ``k``: ``-a*c*k > 0``. Else ``signs`` as given."""
+    import sympy as sp
+
+    expr = sp.sympify(m)
+    for v in expr.free_symbols:
+        base, _, order = str(v).partition("__d")
+        if order != "1" or not (sp.diff(expr, v)).is_number:
+            continue
+        for eq in fm.equations:
+            h = [w for w in eq["known0"].expr.free_symbols if str(w) == state]
+            k = sp.diff(eq["known0"].expr, h[0]) if h else sp.Integer(0)
+            if h and k.is_number and float(k) != 0:
+                return np.full(signs.shape, -float(np.sign(float(sp.diff(expr, v)) * float(k))))
+    return signs
+
+
+def _start_shared(fm, structure, reps, analysis, scale, tau, rng, B, start, data_state=None):
     """Linear curves of random slopes per start: magnitude from the signals' sizes and time scale,
     the sign restoring where the curve's argument is its own equation's state."""
     import sympy as sp
@@ -324,6 +386,16 @@ def _start_shared(fm, structure, reps, analysis, scale, tau, rng, B, start):
         center = np.zeros(B)
         half = np.full(B, 2.0 * size_u)
         c = _Curve(name, rep, structure.arguments[name], arg_layout, center, half, None)
+        size_m = _multiplier_size(m, fm, data_state) if data_state is not None and not pinned else None
+        if size_m is not None and arg_layout is not None and arg_layout == fm.layout.index(base):
+            # a curve of its own state times a signal (Bouc-Wen's f4(x2)*x1'): a line through 0 would
+            # leave a state that starts at 0 there; start it constant, the state then follows the signal
+            level = size_s / (size_m * tau ** int(k)) * 10.0 ** rng.uniform(-0.5, 0.5, B)
+            signs = _restoring_sign(m, base, fm, signs)
+            c.theta = _project(c, np.zeros((B, 64)), half, lambda z, b: np.full_like(z, signs[b] * level[b]), pinned)
+            c.domain = np.stack([-half, half], axis=1)
+            out.append(c)
+            continue
         c.theta = _project(c, np.zeros((B, 64)), half, lambda z, b: signs[b] * slope[b] * z, pinned)
         c.domain = np.stack([-half, half], axis=1)
         out.append(c)
@@ -375,7 +447,7 @@ def _renormalise(c, u, linear):
 def _stage(fm, structure, shared, gain, traj, data_state, analysis, cols, dt, sub, hold, L, max_iter, continuity,
            scale, deadline):
     """One stage of multiple shooting with segments of ``L`` samples; returns the simulated states
-    ``(B, n, D)``, the gains and the data losses."""
+    ``(B, n, D)``, the gains, the data losses and the Levenberg-Marquardt iterations."""
     import torch
 
     from ..train import train
@@ -406,8 +478,8 @@ def _stage(fm, structure, shared, gain, traj, data_state, analysis, cols, dt, su
     for h in analysis.fixed_initial:
         frozen[problem.n_shared + fm.layout.index(h)] = True
     problem.frozen = frozen if bool(frozen.any()) else None
-    theta, _ = train(problem, theta0, adam_steps=0, adam_lr=0.0, lm_max_iter=int(max_iter), lm_tol=1e-6,
-                     stop_loss=0.0, lm_window=4, lm_deadline=deadline, lm_nielsen=True)
+    theta, tlog = train(problem, theta0, adam_steps=0, adam_lr=0.0, lm_max_iter=int(max_iter), lm_tol=1e-6,
+                        stop_loss=0.0, lm_window=4, lm_deadline=deadline, lm_nielsen=True)
     with torch.no_grad():
         loss = problem.residuals(theta)[:, :problem.n_data].pow(2).sum(dim=1).numpy()
     th = theta.double().numpy()
@@ -418,4 +490,4 @@ def _stage(fm, structure, shared, gain, traj, data_state, analysis, cols, dt, su
         gain = th[:, problem.gain_index].copy()
     new_traj = simulate_states(fm, shared, gain, th[:, problem.n_shared:problem.n_shared + D], cols, dt, sub, hold,
                                segments=(th[:, problem.n_shared:].reshape(B, S, D), starts, L))
-    return new_traj, gain, np.where(np.isfinite(loss), loss, np.inf)
+    return new_traj, gain, np.where(np.isfinite(loss), loss, np.inf), int(tlog.lm_iterations)

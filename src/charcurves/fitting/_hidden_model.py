@@ -129,7 +129,8 @@ class StateSpaceModel:
         The ODE state at the record's first sample (hidden states included), as estimated.
     info : dict
         ``start`` (which start ran), ``stages`` (segment length and loss per stage), ``hidden``,
-        ``gauge_freedoms``, ``gauge_conditions``, ``free_run_rmse``, ``seconds``.
+        ``gauge_freedoms``, ``gauge_conditions``, ``free_run_rmse`` (from the record's first samples),
+        ``free_run_rmse_fitted_start`` (from :attr:`initial_state`), ``seconds``, ``cpu_seconds``.
 
     Examples
     --------
