@@ -45,7 +45,7 @@ METHODS = ("nn-cc", "nn-cc+sym", "poly-cc", "sindy-cc+sym", "nn-cc+post-sr", LIM
 ODD_ONLY = ("nn-cc+sym", "sindy-cc+sym")
 #: method labels "METHOD/VARIANT": the method with its default preset changed (issue 46, item 2):
 #: "no-auto" without the automatic terms, "unchecked" with them but not checked on held-out blocks
-VARIANTS = {"no-auto": {"auto_terms": False}, "unchecked": {"check_auto_terms": False}}
+VARIANTS = {"no-auto": {"auto_terms": False}, "unchecked": {"check_auto_terms": False}, "checked": {"check_auto_terms": True}}
 #: every label a table may show, in table order (the variants after their method)
 LABELS = tuple(x for m in METHODS for x in [m] + ([f"{m}/{v}" for v in VARIANTS] if m in ("nn-cc", "nn-cc+sym") else []))
 #: setting -> (noise on, SNR in dB)

@@ -14,7 +14,8 @@ import pytest
 
 from charcurves.cli import main
 
-FAST = ["--no-figure", "--quiet", "--sr-generations", "10", "--seed", "3"]
+FAST = ["--no-figure", "--quiet", "--seed", "3"]
+SR_FAST = ["--sr-generations", "10"]  # only where the method runs symbolic regression
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +41,8 @@ def first_runs(csv, tmp_path_factory):
 
 def _fit(csv, out, method, *extra) -> bytes:
     basis = ("--basis", "f1=z; f2=z, z**3") if method == "parametric" else ()
-    assert main(["fit", str(csv), "--method", method, "--out", str(out), *FAST, *basis, *extra]) == 0
+    sr = SR_FAST if method == "sr" or "sr-cc" in method or method.endswith("+post-sr") else []
+    assert main(["fit", str(csv), "--method", method, "--out", str(out), *FAST, *sr, *basis, *extra]) == 0
     return (out / "result.json").read_bytes()
 
 
@@ -100,7 +102,7 @@ def test_separate_processes_with_different_hash_seeds_agree(csv, tmp_path):
         out = tmp_path / f"p{hash_seed}"
         env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONHASHSEED=hash_seed)
         r = subprocess.run([sys.executable, "-m", "charcurves", "fit", str(csv), "--method", "sr", "--out", str(out),
-                            *FAST], capture_output=True, text=True, env=env, timeout=300)
+                            *FAST, *SR_FAST], capture_output=True, text=True, env=env, timeout=300)
         assert r.returncode == 0, r.stderr
         outputs.append((out / "result.json").read_bytes())
     assert outputs[0] == outputs[1]

@@ -151,7 +151,11 @@ class SymbolicParametrisation:
         clean = lambda e: e.replace(sp.DiracDelta, lambda *a: sp.Integer(0))  # noqa: E731 - d sign/dz = 0 off 0
         self._f = sp.lambdify(args, full, modules="torch")
         self._grads = [sp.lambdify(args, clean(sp.diff(full, s)), modules="torch") for s in self.symbols]
-        self._dz = sp.lambdify(args, clean(sp.diff(full, self.z)), modules="torch")
+        # d/dz on a real z: Abs(z)' is sign(z) (on a complex z sympy leaves Derivative(re(z)), which the
+        # torch printer can only hand to autograd)
+        real_z = sp.Dummy("z", real=True)
+        dz = sp.diff(full.xreplace({self.z: real_z}), real_z).xreplace({real_z: self.z})
+        self._dz = sp.lambdify(args, clean(dz), modules="torch")
 
     def expression(self, values):
         import sympy as sp
@@ -183,8 +187,14 @@ class SymbolicParametrisation:
         return f, torch.stack([self._call(g, theta, u) for g in self._grads], dim=-1)
 
     def evaluate_all(self, theta, u):
+        import torch
+
         f, J = self.evaluate_jacobian(theta, u)
-        return f, J, self._call(self._dz, theta, u)
+        d = self._call(self._dz, theta, u)
+        bad = ~torch.isfinite(d)
+        if bool(bad.any()):  # 0/0 where a term such as z*sqrt(|z|) has its limit: the slope just beside
+            d = torch.where(bad, self._call(self._dz, theta, u + 1e-9 * (1.0 + u.abs())), d)
+        return f, J, d
 
     def decay_groups(self) -> list:
         return []

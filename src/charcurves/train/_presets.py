@@ -62,7 +62,8 @@ class TrainingPreset:
     check_auto_terms : bool
         Keep the terms the tests add only where the fit with them has the lower Akaike criterion
         than a second fit of the record without them (one extra fit where a test added a term; see
-        ``charcurves.fitting._auto_terms``); False keeps them unchecked.
+        ``charcurves.fitting._auto_terms``). Off by default: on polynomial truths the criterion
+        dropped terms the curve needs (docs/training-defaults.md).
 
     Examples
     --------
@@ -100,7 +101,7 @@ class TrainingPreset:
     combine_tol: float = 0.02
     auto_jump: bool = True
     auto_terms: bool = True
-    check_auto_terms: bool = True
+    check_auto_terms: bool = False
     bayesian: bool = True
     decay_groups: str = "per-layer"
 
