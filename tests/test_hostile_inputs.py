@@ -497,3 +497,29 @@ def test_a_benchmark_snr_that_overflows_is_not_read_as_no_noise():
     assert parse_snr_list("40,inf,+Infinity") == (40.0, float("inf"))
     with pytest.raises(ConfigError, match=r"--snr values must be finite dB levels or inf, got '1e999'"):
         parse_snr_list("40,1e999")
+
+
+def test_a_forcing_whose_offset_swamps_its_motion_is_refused_like_x():
+    from charcurves.data import Trajectory
+
+    tr = _duffing()
+    with pytest.raises(DataError, match=r"^F is offset by 1e\+09, [0-9.]+e\+0[89] times its motion .*subtract the offset "
+                                        r"\(F - 1e\+09\) and fit again$"):
+        Trajectory(t=tr.t, x=tr.x, F=np.asarray(tr.F) + 1e9)
+    Trajectory(t=tr.t, x=tr.x, F=np.asarray(tr.F) + 3.0)  # a preload of a few times the forcing's motion is fine
+
+
+def test_an_operator_named_twice_is_refused(tmp_path, capsys):
+    tr = _duffing()
+    path = _write_record(tmp_path / "r.csv", tr.t, tr.x, tr.F)
+    line = _one_line_exit_2(capsys, "fit", path, "--out", tmp_path / "out", "--method", "sr", "--sr-operators",
+                            "add,mul,add")
+    assert line.endswith("operator(s) add given more than once; name each operator once")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_utf16_csv_is_named_as_such_not_as_binary(tmp_path, capsys):
+    path = tmp_path / "u16.csv"
+    path.write_bytes("t,x,F\n0,0,0\n0.1,0.1,0.2\n".encode("utf-16"))
+    line = _one_line_exit_2(capsys, "fit", path, "--out", tmp_path / "out")
+    assert "is UTF-16 or UTF-32 text (a byte-order mark); save it as UTF-8 CSV" in line

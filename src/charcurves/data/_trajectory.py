@@ -155,8 +155,9 @@ class Trajectory(_SampledRecord):
                 "time stamps must be strictly increasing: sort the rows and drop duplicates"
             )
         check_time_step(t)
-        if "x" in cols:
-            check_offset("x", cols["x"])
+        for key in ("x", "F"):  # a forcing of 1e9 plus a small motion loses its digits like x does
+            if key in cols:
+                check_offset(key, cols[key])
         for key, arr in cols.items():
             arr.setflags(write=False)
             object.__setattr__(self, key, arr)
@@ -386,6 +387,8 @@ class MultiTrajectory(_SampledRecord):
         for k, v in self.states.items():
             check_offset(k, v)
         object.__setattr__(self, "forces", freeze(self.forces, "forcing"))
+        for k, v in self.forces.items():
+            check_offset(k, v)
         for key in ("velocities", "accelerations"):
             d = getattr(self, key)
             if d is not None:

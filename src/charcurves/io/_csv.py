@@ -47,6 +47,8 @@ def _read_text(path: str | os.PathLike) -> str:
         raise DataError(f"file {p!r} cannot be read ({exc.strerror}); check the path") from None
     if not raw.strip():
         raise DataError(f"file {p!r} is empty; give a CSV file with a header row and data rows")
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff") or raw[:4] in (b"\x00\x00\xfe\xff", b"\xff\xfe\x00\x00"):
+        raise DataError(f"file {p!r} is UTF-16 or UTF-32 text (a byte-order mark); save it as UTF-8 CSV")
     if b"\x00" in raw[:65536]:
         raise DataError(f"file {p!r} looks binary, not a CSV text file; export the data as CSV")
     try:

@@ -138,6 +138,9 @@ def check_operators(ops) -> tuple[str, ...]:
     if bad:
         raise ConfigError(f"unknown operator(s) {bad}; give auto or names from {', '.join(OPERATORS)} "
                           "(e.g. add,sub,mul,abs,tanh)")
+    repeated = sorted({o for o in ops if ops.count(o) > 1})
+    if repeated:
+        raise ConfigError(f"operator(s) {', '.join(repeated)} given more than once; name each operator once")
     if not any(o in _BINARY for o in ops):
         raise ConfigError(f"operators {ops} have no binary operator; include at least 'add'")
     return ops
