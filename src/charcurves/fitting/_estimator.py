@@ -218,7 +218,7 @@ class CharacteristicCurves(Params):
             elif isinstance(self.symmetry, str) and self.symmetry.strip().lower() == "auto":
                 models = fit_many_auto(self, trajectories, seeds)  # detect parities, then fit with them
             else:
-                models = run_pipeline(self, list(trajectories), seeds)
+                models = run_pipeline(self, trajectories, seeds)
         for m in models:
             m.info["priors"] = priors_record(self, m)
             name_prior_in_warnings(m)

@@ -221,6 +221,12 @@ class LinearPosterior:
             self._gauge = (names, offs, keys, S, O)
         return self._gauge
 
+    def _idle_inputs(self) -> np.ndarray:
+        """The gauge's inputs (curve values at 0, offsets) that it moves nothing by: a curve infinite
+        at 0 (a basis such as 1/z) that no gauge anchors there."""
+        *_, S, O = self._gauge_map()
+        return ~(np.any(S != 0, axis=0) | np.any(O != 0, axis=0))
+
     def _values(self, coef: np.ndarray, feats: dict, phi0: dict) -> tuple[dict, dict]:
         """Curves on ``feats``' grids and the free constants and scalars: linear in ``coef``."""
         by_curve: dict[str, dict] = {nm: {} for nm in self.template.curve_names}
@@ -239,9 +245,7 @@ class LinearPosterior:
                 raw0[nm] = float(ph[0] @ theta[nm] + by_curve[nm].get("const", 0.0))
         names, off_keys, new_keys, S, O = self._gauge_map()
         inputs = np.array([raw0[nm] for nm in names] + [offs.get(e, 0.0) for e in off_keys])
-        # a curve infinite at 0 (a basis such as 1/z) that no gauge anchors there moves nothing
-        idle = ~np.isfinite(inputs) & ~np.any(S != 0, axis=0) & ~np.any(O != 0, axis=0)
-        inputs[idle] = 0.0
+        inputs[~np.isfinite(inputs) & self._idle_inputs()] = 0.0
         shifts = dict(zip(names, S @ inputs))
         new_off = dict(zip(new_keys, O @ inputs))
         curves = {nm: ph @ theta[nm] + by_curve[nm].get("const", 0.0) + shifts[nm] for nm, ph in feats.items()}
@@ -271,8 +275,7 @@ class LinearPosterior:
                 Jin[names.index(owner), j] = 1.0 if key == "const" else phi0[owner][0, key]
                 if owner in direct:
                     direct[owner][:, j] = 1.0 if key == "const" else feats[owner][:, key]
-        idle = ~np.any(S != 0, axis=0) & ~np.any(O != 0, axis=0)  # inputs no gauge moves (e.g. 1/z at 0)
-        Jin[idle & ~np.all(np.isfinite(Jin), axis=1)] = 0.0
+        Jin[self._idle_inputs() & ~np.all(np.isfinite(Jin), axis=1)] = 0.0
         jc = {nm: (direct[nm] + (S[names.index(nm)] @ Jin)[None, :]) @ D for nm in feats}
         dO = O @ Jin
         for r, e in enumerate(new_keys):
