@@ -42,9 +42,10 @@ def test_the_names_users_imported_from_fitting_before_the_split_are_there():
 
 
 def test_the_rule_that_adds_output_error_is_written_once():
-    from charcurves.objectives import runs_output_error
+    from charcurves.objectives import resolve_objective
+    from charcurves.train import get_preset
 
-    table = {(mode, estimated, preset): runs_output_error(mode, estimated, preset)
+    table = {(mode, estimated, preset): resolve_objective(mode).refines(estimated, get_preset(preset))
              for mode in ("auto", "equation-error", "output-error") for estimated in (False, True)
              for preset in ("default", "paper")}
     assert sorted(k for k, v in table.items() if v) == [

@@ -58,6 +58,7 @@ _LAZY: dict[str, str | tuple[str, str]] = {
     "EquationError": "charcurves.fitting",
     "OutputError": "charcurves.fitting",
     "Auto": "charcurves.fitting",
+    "Objective": "charcurves.objectives",
     "MethodPreset": "charcurves.fitting",
     "FittedModel": "charcurves.fitting",
     "fit": "charcurves.fitting",

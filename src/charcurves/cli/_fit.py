@@ -295,7 +295,10 @@ def cmd_fit(a) -> int:
     source = source_path(paths[0], a.out) if len(paths) == 1 else [source_path(p, a.out) for p in paths]
     from ._cost import record_cost_warnings
 
-    oe = a.objective == "output-error" or (a.objective in (None, "auto") and not records[0].has_derivatives)
+    from ..fitting import cli_objective, get_preset, resolve_objective
+
+    objective = resolve_objective(cli_objective(a.objective, a.refine))
+    oe = objective.refines(not records[0].has_derivatives, get_preset(a.preset))
     cost = record_cost_warnings(sum(r.n_samples for r in records), allow_long=a.long_record, output_error=oe)
     for line in cost:  # before the fit, not only in result.json after it
         warn(line)

@@ -8,7 +8,7 @@ Public API
 CharacteristicCurves(template=..., differentiator=..., objective=..., post_sr=...)   the estimator
 CharacteristicCurves.from_method("nn-cc+sym", family=...), MethodPreset   the method presets
 fit(record, method="nn-cc+sym", ...)                       shortcut
-EquationError(), OutputError(...), Auto(...)               objectives
+EquationError(), OutputError(...), Auto(...), Objective   objectives (Objective: the interface)
 FittedModel, load_model                                    fitted models and their files
 plot_curves, plot_model, model_html, curve_lines, ...      views of a fitted model (figures, text, HTML)
 METHODS, PRESETS, TrainingPreset                           method and training presets
@@ -47,6 +47,8 @@ from ..model import model_digest as model_digest
 from ..objectives import OBJECTIVES as OBJECTIVES
 from ..objectives import EquationError as EquationError
 from ..objectives import OutputError as OutputError
+from ..objectives import Objective as Objective
+from ..objectives import resolve_objective as resolve_objective
 from ..model import closed_form_text as closed_form_text
 from ..objectives import free_run_diagnostics as free_run_diagnostics
 from ..objectives import output_error_fit as output_error_fit

@@ -248,16 +248,14 @@ def _prepared(estimator, record):
 def _beyond_raw(estimator, records) -> bool:
     """Whether the estimator's models go beyond the raw fit (post-SR, output error)."""
     from ..templates import derivatives_given
-    from ..objectives import resolve_objective, runs_output_error
+    from ..objectives import resolve_objective
 
-    mode, _ = resolve_objective(estimator.objective, estimator.refine, estimator.refine_options)
+    objective = resolve_objective(estimator.objective, estimator.refine, estimator.refine_options)
     if estimator.wants_post_sr():
         return True
-    name = estimator.preset_object().name
-    if mode != "auto":  # the rule does not depend on the records
-        return runs_output_error(mode, True, name)
+    preset = estimator.preset_object()
     structure = estimator.resolve()[1]
-    return any(runs_output_error(mode, not derivatives_given(r, structure, estimator.differentiator_value()), name)
+    return any(objective.refines(not derivatives_given(r, structure, estimator.differentiator_value()), preset)
                for r in records)
 
 

@@ -26,7 +26,7 @@ from ._symmetry import fit_many_auto
 if TYPE_CHECKING:
     from ..data import Differentiator
     from ..templates import Template
-    from ..objectives import Auto, EquationError, OutputError
+    from ..objectives import Objective
 
 __all__ = ["CharacteristicCurves", "fit", "MAX_SEED"]
 
@@ -53,8 +53,8 @@ class CharacteristicCurves(Params):
         The method preset and its shorthands (family, priors, basis...); :meth:`from_method` builds it. None: the default, NN-CC with the parity priors the record supports.
     differentiator : str or Differentiator, optional
         How the template's derivatives are obtained: "auto" (None: the record's own columns, else estimated), "given", a name ("spectral", "savgol", ...) or an instance.
-    objective : str or EquationError or OutputError or Auto
-        "auto" (default: equation error, then output error on records whose derivatives were estimated), "equation-error", "output-error" or an objective object.
+    objective : str or Objective
+        "auto" (default: equation error, then output error on records whose derivatives were estimated), "equation-error", "output-error" or an objective object (``EquationError()``, ``OutputError(...)``, ``Auto(...)`` or a subclass of ``Objective`` of your own).
     post_sr : bool, optional
         Distil the fitted curves into closed forms (symbolic regression); None: the method's choice.
     preset : str or TrainingPreset
@@ -85,7 +85,7 @@ class CharacteristicCurves(Params):
 
     def __init__(self, template: Template | None = None, *, method: MethodPreset | None = None,
                  differentiator: str | Differentiator | None = None,
-                 objective: str | EquationError | OutputError | Auto = "auto", post_sr: bool | None = None, preset: str | TrainingPreset = "default",
+                 objective: str | Objective = "auto", post_sr: bool | None = None, preset: str | TrainingPreset = "default",
                  random_state: int = 0, threads: int | None = None, device: str = "cpu",
                  progress: Callable | None = None, snr_db: float | None = None, **legacy: Any):
         if legacy or isinstance(method, str):  # the older spelling: one FutureWarning, then the same objects
@@ -111,7 +111,7 @@ class CharacteristicCurves(Params):
                     hidden: Sequence[int] | None = None, activation: str | None = None,
                     exclude_sticking: bool = True, sr_options: dict | None = None,
                     differentiator: str | Differentiator | None = None,
-                    objective: str | EquationError | OutputError | Auto = "auto", post_sr: bool | None = None, preset: str | TrainingPreset = "default",
+                    objective: str | Objective = "auto", post_sr: bool | None = None, preset: str | TrainingPreset = "default",
                     random_state: int = 0, threads: int | None = None, device: str = "cpu",
                     progress: Callable | None = None, snr_db: float | None = None) -> CharacteristicCurves:
         """The estimator of one of the paper's methods, its shorthands turned into a :class:`MethodPreset`.
@@ -157,7 +157,7 @@ class CharacteristicCurves(Params):
             Symbolic regression settings (engine, generations, ...) of the SR methods and post-SR.
         differentiator : str or Differentiator, optional
             As :class:`CharacteristicCurves`: "auto" (None), "given", a name or an instance.
-        objective : str or EquationError or OutputError or Auto
+        objective : str or Objective
             As :class:`CharacteristicCurves`: "auto", "equation-error", "output-error" or an object.
         post_sr : bool, optional
             Distil the fitted curves into closed forms; None: the method's choice (the "+post-sr" methods).

@@ -10,7 +10,7 @@ from typing import Any
 
 from .._errors import ConfigError
 from ._method_preset import MethodPreset
-from ..objectives import Auto, EquationError, OutputError, resolve_objective
+from ..objectives import EquationError, Objective, resolve_objective
 
 __all__ = ["SHORTHANDS", "LEGACY_NAMES", "from_legacy", "cli_objective", "legacy_options"]
 
@@ -84,9 +84,9 @@ def cli_objective(objective, refine: str | None = None, refine_options: dict | N
     objective = "auto" if objective is None else objective
     if refine is None and refine_options is None:
         return objective
-    mode, settings = resolve_objective(objective, refine, refine_options)
-    if isinstance(objective, (EquationError, OutputError, Auto)):
+    resolved = resolve_objective(objective, refine, refine_options)
+    if isinstance(objective, Objective):
         return objective  # the object wins, as before
-    if refine_options is None or mode == "equation-error":
-        return mode
-    return settings if mode == "output-error" else Auto(output_error=settings)
+    if refine_options is None or isinstance(resolved, EquationError):
+        return resolved.name
+    return resolved  # OutputError(...) or Auto(output_error=OutputError(...)) with the settings

@@ -4,8 +4,8 @@
 2. prepare each record: derivatives given or estimated by the differentiator, identifiability checks;
 3. the samples each record fits (sticking phases left out) and the learned jumps (dry friction);
 4. the fit by equation error through the one fitting path (:mod:`._fit_path`);
-5. output error, when the objective asks for it ("auto": on records whose derivatives were
-   estimated), on the fitted curves;
+5. the objective's refit of the fitted curves, on the records it refines (``objective.refines``;
+   output error: every record; "auto": those whose derivatives were estimated);
 6. post-SR (closed forms), when asked: it distils the curves output error refined (not the
    equation-error fit, whose curves carry the differentiated noise), and output error then refits
    the closed forms' constants (records that went through step 5);
@@ -22,7 +22,7 @@ from __future__ import annotations
 from .._errors import ConfigError
 from ._fit_path import fit_records, fitter_kind, resolve_jumps
 from ._methods import METHODS, check_method_options
-from ..objectives import output_error_fit, resolve_objective, runs_output_error
+from ..objectives import resolve_objective
 from ._sticking import sticking_masks
 from ._self_check import derivative_noise, measured_state_noise, self_check
 from ._priors import name_prior_in_warnings, priors_record
@@ -78,7 +78,7 @@ def _fit_stage(est, records: list, seeds):
     from ._records import prepare_any
 
     tmpl, structure, sym, method = est.resolve()
-    mode, oe_settings = resolve_objective(est.objective, est.refine, est.refine_options)
+    objective = resolve_objective(est.objective, est.refine, est.refine_options)
     preset = est.preset_object()
     reps = tmpl.curves
     kind = fitter_kind(reps)
@@ -100,13 +100,8 @@ def _fit_stage(est, records: list, seeds):
                            stick_tol=options.get("stick_tol", "default"))
     jumps = resolve_jumps(reps, prepared, structure, estimated, preset) if kind == "gradient" else \
         [((), (), ()) for _ in prepared]
-    use_oe = [runs_output_error(mode, e, preset.name) for e in estimated]
-    fit_preset = preset
-    if all(use_oe) and preset.combine == "mean":
-        # every start goes on to output error, which chooses the members afterwards (by AIC, where a
-        # start that fits the noise with more effective parameters loses): keep them all here (post-SR
-        # comes after output error, so a +post-sr fit keeps them too)
-        fit_preset = preset.replace(combine_tol=float("inf"))
+    use_oe = [objective.refines(e, preset) for e in estimated]
+    fit_preset = objective.start_preset(preset, estimated)  # output error keeps every member of the start
     fit_kw = {"method": method, "options": options, "sr_options": dict(est.sr_options or {}), "device": est.device,
               "threads": est.threads, "progress": est.progress}
     models = fit_records(prepared, structure, reps, fit_preset, seeds, masks=masks, jumps=jumps, **fit_kw)
@@ -125,8 +120,8 @@ def _fit_stage(est, records: list, seeds):
         for m, note in zip(models, notes):
             if note is not None:
                 m.info["automatic_terms"] = note
-    return {"models": models, "prepared": prepared, "estimated": estimated, "seeds": seeds, "mode": mode,
-            "oe_settings": oe_settings, "preset": preset, "reps": reps, "structure": structure, "sym": sym,
+    return {"models": models, "prepared": prepared, "estimated": estimated, "seeds": seeds,
+            "objective": objective, "preset": preset, "reps": reps, "structure": structure, "sym": sym,
             "method": method, "diff": diff, "jumps": jumps, "use_oe": use_oe, "masks": masks}
 
 
@@ -195,19 +190,19 @@ def _post_sr_pair(plain, distilled) -> str:
 
 
 def _refine(est, ctx: dict, records: list, models=None, stop: bool | None = None) -> tuple[list, bool]:
-    """Output error of the models (the fit stage's by default) on the records that ask for it."""
+    """The objective's refit of the models (the fit stage's by default) on the records it refines."""
     models = ctx["models"] if models is None else models
     if stop is None:
         stop = any(m.info.get("interrupted") for m in models)
-    return _output_error(models, ctx["prepared"], records, ctx["use_oe"], ctx["oe_settings"], ctx["preset"],
-                         est.progress, stop, strict=ctx["mode"] == "output-error")
+    return _objective_stage(models, ctx["prepared"], records, ctx["use_oe"], ctx["objective"], ctx["preset"],
+                            est.progress, stop)
 
 
 def _finish(est, ctx: dict, records: list, refined: tuple[list, bool] | None = None) -> list:
     """Output error (unless ``refined`` gives its result), post-SR and output error of the closed
     forms, the settings and the self-check of the fit stage's models."""
     prepared, estimated, seeds = ctx["prepared"], ctx["estimated"], ctx["seeds"]
-    mode, preset, reps, use_oe = ctx["mode"], ctx["preset"], ctx["reps"], ctx["use_oe"]
+    objective, preset, reps = ctx["objective"], ctx["preset"], ctx["reps"]
     structure, sym, method, diff, jumps = ctx["structure"], ctx["sym"], ctx["method"], ctx["diff"], ctx["jumps"]
     models, stop = _refine(est, ctx, records) if refined is None else refined
     if est.wants_post_sr():
@@ -222,8 +217,8 @@ def _finish(est, ctx: dict, records: list, refined: tuple[list, bool] | None = N
             "family": structure.family,
             "curves": {n: repr(r) for n, r in reps.items()},
             "differentiator": differentiator_used(prepared[k], diff, estimated[k]),
-            "objective": "output-error" if use_oe[k] else "equation-error",
-            "objective_requested": mode,
+            "objective": objective.applied(estimated[k], preset),
+            "objective_requested": objective.name,
             "post_sr": est.wants_post_sr(),
             **({"sr_operators": _sr_operators(est)} if est.wants_post_sr() or method.startswith("sr") else {}),
             "preset": preset.name,
@@ -298,12 +293,12 @@ def _post_sr(est, models, prepared, seeds, stop):
     return done, stop
 
 
-def _output_error(models, prepared, raw, use_oe, settings, preset, progress, stop, strict=False):
+def _objective_stage(models, prepared, raw, use_oe, objective, preset, progress, stop):
     out = []
     for m, p, r, wanted in zip(models, prepared, raw, use_oe):
         if wanted and not stop:
             try:
-                out.append(output_error_fit(m, p, r, settings, preset=preset, progress=progress, strict=strict))
+                out.append(objective.refine(m, p, r, preset=preset, progress=progress))
                 stop = stop or bool(out[-1].info.get("interrupted"))
                 continue
             except KeyboardInterrupt:  # keep the finished fit, without output error, and say so

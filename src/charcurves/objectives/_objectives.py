@@ -1,4 +1,5 @@
-"""Objectives of a fit: equation error and output error, as objects.
+"""Objectives of a fit: equation error, output error and the choice between them, as objects
+(the interface they share: :class:`~charcurves.objectives.Objective`, in :mod:`._base`).
 
 * :class:`EquationError` regresses the template's equation on the record's derivatives (given,
   or estimated by the differentiator): the paper's loss, fast, exact when the derivatives are.
@@ -8,37 +9,26 @@
   is measured, its derivatives are estimated from noisy data, and equation error inherits their
   errors -- a bias in the curves and in their arguments (errors in variables) -- while the free
   run fits the measurement itself.
+* :class:`Auto` is equation error, then output error on the records whose derivatives were
+  estimated (except under the paper's preset, whose protocol is equation error).
+
+A new objective of the library is a subclass of ``Objective`` in a file of its own, registered by
+adding its class to ``_REGISTRY`` below (which gives its name to ``objective=`` and ``--objective``).
 """
 
 from __future__ import annotations
 
-import inspect
-
 import numpy as np
 
 from .._errors import ConfigError
-from .._params import Params
+from ..train import get_preset
+from ._base import Objective
+from ._output_error import output_error_fit
 
-__all__ = ["Auto", "EquationError", "OutputError", "OBJECTIVES", "resolve_objective", "runs_output_error"]
-
-#: Names accepted by ``objective=`` (and the CLI's ``--objective``).
-OBJECTIVES = ("auto", "equation-error", "output-error")
-
-
-class _Objective(Params):
-    name = ""
-
-    def __repr__(self) -> str:
-        sig = inspect.signature(type(self).__init__)
-        shown = [f"{n}={getattr(self, n)!r}" for n in self._param_names()
-                 if getattr(self, n) != sig.parameters[n].default]
-        return f"{type(self).__name__}({', '.join(shown)})"
-
-    def __eq__(self, other) -> bool:
-        return type(self) is type(other) and self.get_params() == other.get_params()
+__all__ = ["Auto", "EquationError", "OutputError", "OBJECTIVES", "resolve_objective", "refine_output_error"]
 
 
-class EquationError(_Objective):
+class EquationError(Objective):
     """Fit the equation to the derivatives of the record (given or estimated).
 
     Examples
@@ -56,8 +46,15 @@ class EquationError(_Objective):
     def __init__(self):
         pass
 
+    def refines(self, estimated: bool, preset) -> bool:
+        """Never: the equation-error start is the fit."""
+        return False
 
-class OutputError(_Objective):
+    def refine(self, start, prepared, measured, *, preset, progress=None):
+        return start
+
+
+class OutputError(Objective):
     """Fit the free-run simulation of the template to the measured states (multiple shooting).
 
     Parameters
@@ -147,8 +144,24 @@ class OutputError(_Objective):
         if isinstance(b, bool) or not isinstance(b, (int, float)) or not b > 0:
             raise ConfigError(f"time_budget must be a positive number of seconds, got {b!r}")
 
+    def refines(self, estimated: bool, preset) -> bool:
+        """Always: output error is what was asked for, on every record."""
+        return True
 
-class Auto(_Objective):
+    def refine(self, start, prepared, measured, *, preset, progress=None):
+        """Multiple shooting from the start (:func:`~charcurves.objectives.output_error_fit`); a model or
+        record it cannot run on is an error (ConfigError/DataError), as output error was asked for."""
+        return output_error_fit(start, prepared, measured, self, preset=preset, progress=progress, strict=True)
+
+    def start_preset(self, preset, estimated: list[bool]):
+        """Every member of a mean-combined ensemble start goes on to output error, which chooses the
+        members afterwards (by AIC, where a start that fits the noise with more effective parameters
+        loses): keep them all in the start (post-SR comes after output error, so a +post-sr fit keeps
+        them too)."""
+        return preset.replace(combine_tol=float("inf")) if preset.combine == "mean" else preset
+
+
+class Auto(Objective):
     """Equation error, then output error on records whose derivatives were estimated (``objective="auto"``).
 
     Parameters
@@ -168,27 +181,66 @@ class Auto(_Objective):
     def __init__(self, output_error: OutputError | None = None):
         self.output_error = output_error
 
+    def settings(self) -> OutputError:
+        """The output-error stage's objective (``output_error``, or ``OutputError()``)."""
+        return OutputError() if self.output_error is None else self.output_error
+
+    def refines(self, estimated: bool, preset) -> bool:
+        """On records whose derivatives were estimated (equation error on differentiated columns is
+        biased by the noise on the state), except under the paper's preset (its protocol is
+        equation error)."""
+        return bool(estimated) and preset.name != "paper"
+
+    def applied(self, estimated: bool, preset) -> str:
+        return OutputError.name if self.refines(estimated, preset) else EquationError.name
+
+    def refine(self, start, prepared, measured, *, preset, progress=None):
+        """Output error with this objective's settings; a model or record it cannot run on keeps the
+        equation-error start, with the reason in ``info["output_error"]`` and a warning."""
+        return output_error_fit(start, prepared, measured, self.settings(), preset=preset, progress=progress,
+                                strict=False)
+
+    def start_preset(self, preset, estimated: list[bool]):
+        """As :class:`OutputError`'s where every record goes on to output error, else the fit's."""
+        if all(self.refines(e, preset) for e in estimated):
+            return self.settings().start_preset(preset, estimated)
+        return preset
+
+    def check(self) -> None:
+        super().check()
+        if self.output_error is not None and not isinstance(self.output_error, OutputError):
+            raise ConfigError(f"Auto(output_error=...) takes an OutputError(...), got {self.output_error!r}")
+        self.settings().check()
+
+
+#: The library's objectives by name: what ``objective="..."`` and the CLI's ``--objective`` build. A
+#: new objective of the library adds its class here.
+_REGISTRY: dict[str, type[Objective]] = {c.name: c for c in (Auto, EquationError, OutputError)}
+
+#: Names accepted by ``objective=`` (and the CLI's ``--objective``).
+OBJECTIVES = tuple(_REGISTRY)
 
 #: ``refine_options`` of the older API -> OutputError parameters
 _REFINE_KEYS = {"hold": "hold", "substeps": "substeps", "segment_length": "segment_length", "max_nfev": "max_iter",
                 "time_budget": "time_budget"}
 
 
-def runs_output_error(mode: str, estimated: bool, preset_name: str) -> bool:
-    """Whether the fit of one record goes on from equation error to output error: when it is asked
-    (``mode`` "output-error"), or with "auto" on a record whose derivatives were estimated (equation
-    error on differentiated columns is biased by the noise on the state), except under the paper's
-    preset (its protocol is equation error). ``mode`` is :func:`resolve_objective`'s."""
-    return mode == "output-error" or (mode == "auto" and bool(estimated) and preset_name != "paper")
+def resolve_objective(objective, refine=None, refine_options=None) -> Objective:
+    """The objective object of an ``objective=`` setting (a name of :data:`OBJECTIVES`, None for
+    "auto", or an :class:`Objective`), with the older ``refine=`` ("none" is equation error) and
+    ``refine_options=`` (the output-error settings of a name; an object keeps its own), checked.
 
-
-def resolve_objective(objective, refine=None, refine_options=None) -> tuple[str, OutputError]:
-    """``(mode, OutputError settings)``: mode is "auto", "equation-error" or "output-error"."""
+    Examples
+    --------
+    >>> from charcurves.objectives import resolve_objective
+    >>> resolve_objective("output-error", refine_options={"hold": "zoh"}), resolve_objective(None, refine="none")
+    (OutputError(hold='zoh'), EquationError())
+    """
     if refine is not None:
         legacy = {"none": "equation-error", "output-error": "output-error", "auto": "auto"}
         if refine not in legacy:
             raise ConfigError(f"unknown refine {refine!r}; choose one of {', '.join(legacy)}")
-        if objective not in ("auto", None) and not isinstance(objective, _Objective) and legacy[refine] != objective:
+        if objective not in ("auto", None) and not isinstance(objective, Objective) and legacy[refine] != objective:
             raise ConfigError("give the objective once: refine= is the older name of objective=")
         objective = legacy[refine] if objective in ("auto", None) else objective
     settings = OutputError()
@@ -200,22 +252,43 @@ def resolve_objective(objective, refine=None, refine_options=None) -> tuple[str,
         if unknown:
             raise ConfigError(f"unknown refine option {unknown[0]!r}; valid: {', '.join(_REFINE_KEYS)}")
         settings.set_params(**{_REFINE_KEYS[k]: v for k, v in refine_options.items()})
-    if isinstance(objective, OutputError):
-        settings = objective
-        mode = "output-error"
-    elif isinstance(objective, Auto):
-        if objective.output_error is not None and not isinstance(objective.output_error, OutputError):
-            raise ConfigError(f"Auto(output_error=...) takes an OutputError(...), got {objective.output_error!r}")
-        settings = objective.output_error if objective.output_error is not None else settings
-        mode = "auto"
-    elif isinstance(objective, EquationError):
-        mode = "equation-error"
-    elif isinstance(objective, str) and objective in OBJECTIVES:
-        mode = objective
-    elif objective is None:
-        mode = "auto"
-    else:
+        settings.check()
+    if objective is None:
+        objective = "auto"
+    if isinstance(objective, str) and objective in _REGISTRY:
+        cls = _REGISTRY[objective]
+        if cls is OutputError:
+            objective = settings
+        elif cls is Auto:
+            objective = Auto(output_error=settings if refine_options is not None else None)
+        else:
+            objective = cls()
+    elif isinstance(objective, Auto) and objective.output_error is None and refine_options is not None:
+        objective = Auto(output_error=settings)
+    elif not isinstance(objective, Objective):
         raise ConfigError(f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}, EquationError(), "
-                          "OutputError(...) or Auto(...)")
+                          "OutputError(...), Auto(...) or an instance of a subclass of Objective")
+    objective.check()
+    return objective
+
+
+def refine_output_error(model, traj, *, hold: str = "linear", substeps: int = 4, segment_length: int = 256,
+                        max_nfev: int = 60, time_budget: float = 600.0):
+    """Output error of a fitted model on its record (the older entry point; see :func:`output_error_fit`).
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.fitting import refine_output_error
+    >>> from charcurves.systems import get_system
+    >>> clean = get_system("duffing").simulate(t_end=20.0, n_points=500)
+    >>> record = cc.estimate_derivatives(cc.corrupt(clean, 30, on="state", seed=0))
+    >>> start = cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3")
+    >>> model = refine_output_error(start, record, substeps=1, segment_length=32, max_nfev=2)  # a short run
+    >>> model.info["output_error"]["status"], model.curves["f2"].coefficients.round(2).tolist()
+    ('ok', [-1.0, 1.0])
+    """
+    settings = OutputError(segment_length=segment_length, substeps=substeps, hold=hold, max_iter=max_nfev,
+                           time_budget=time_budget)
     settings.check()
-    return mode, settings
+    return output_error_fit(model, traj, traj, settings, preset=get_preset("default"), strict=True)

@@ -21,11 +21,10 @@ import numpy as np
 
 from .._errors import ConfigError, DataError
 from ..model import finish_model
-from ..train import RELEVANCE_LABEL, get_preset, train
-from ._objectives import OutputError
+from ..train import RELEVANCE_LABEL, train
 from ._records import common_step, record_segments
 
-__all__ = ["free_run_diagnostics", "output_error_fit", "refine_output_error", "choose_substeps",
+__all__ = ["free_run_diagnostics", "output_error_fit", "choose_substeps",
            "choose_segment_length", "slow_template"]
 
 
@@ -83,7 +82,7 @@ def _positions(record, positions) -> dict:
     return {p: np.asarray(record.states[p], dtype=float) for p in positions}
 
 
-def output_error_fit(model, prepared, measured, settings: OutputError, *, preset, progress=None, strict: bool = False):
+def output_error_fit(model, prepared, measured, settings: Any, *, preset, progress=None, strict: bool = False):
     """Output error of one fitted model on its record (module docstring).
 
     Parameters
@@ -459,24 +458,3 @@ def _kept(model, report: dict, status: str):
     model.info.setdefault("warnings", []).append(f"output error: {status}")
     return model
 
-
-def refine_output_error(model, traj, *, hold: str = "linear", substeps: int = 4, segment_length: int = 256,
-                        max_nfev: int = 60, time_budget: float = 600.0):
-    """Output error of a fitted model on its record (the older entry point; see :func:`output_error_fit`).
-
-    Examples
-    --------
-    >>> import charcurves as cc
-    >>> from charcurves.fitting import refine_output_error
-    >>> from charcurves.systems import get_system
-    >>> clean = get_system("duffing").simulate(t_end=20.0, n_points=500)
-    >>> record = cc.estimate_derivatives(cc.corrupt(clean, 30, on="state", seed=0))
-    >>> start = cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3")
-    >>> model = refine_output_error(start, record, substeps=1, segment_length=32, max_nfev=2)  # a short run
-    >>> model.info["output_error"]["status"], model.curves["f2"].coefficients.round(2).tolist()
-    ('ok', [-1.0, 1.0])
-    """
-    settings = OutputError(segment_length=segment_length, substeps=substeps, hold=hold, max_iter=max_nfev,
-                           time_budget=time_budget)
-    settings.check()
-    return output_error_fit(model, traj, traj, settings, preset=get_preset("default"), strict=True)
