@@ -176,3 +176,18 @@ def test_the_command_line_offers_the_registered_objectives():
     fit = next(a for a in build_parser("0")._actions if a.dest == "command").choices["fit"]
     choices = next(a.choices for a in fit._actions if a.dest == "objective")
     assert tuple(choices) == OBJECTIVES == ("auto", "equation-error", "output-error")
+
+
+def test_the_example_of_the_objectives_page_runs(records):
+    """The code block of docs/api/objectives.md, run as written on a record with derivatives given."""
+    import re
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "api" / "objectives.md").read_text(encoding="utf-8")
+    [code] = re.findall(r"```python\n(.*?)```", page, re.S)
+    namespace = {"record": records[1]}
+    exec(compile(code, "docs/api/objectives.md", "exec"), namespace)  # the page's own example
+    model = namespace["model"]
+    assert model.info["settings"]["objective"] == "short-output-error"
+    assert model.info["output_error"]["status"] == "ok"  # output error ran on a record whose derivatives were given
+    assert namespace["EveryRecordShort"]().get_params() == {"max_iter": 5}
