@@ -5,13 +5,14 @@ The tests of :func:`._fit_path.resolve_jumps` add terms beside the neural curves
 curve's argument, a curve's harmonics, a jump of a velocity curve). A term earns its place where
 the record says little: towards the ends of a curve's argument range, where a network alone is
 flattened by its weight decay and a polynomial truth's ``x^2`` or ``x^3`` carries on. So the samples
-held out are those at the ends of the range: for every neural curve, those whose argument lies in
-the outer ``TAIL`` fraction on either side (of its weight in the equation: a curve times a
-velocity is held out where the record still says something about it). Each candidate -- the network alone (the layout without
-any automatic term) and the network with ONE of the added terms -- is fitted on the other samples,
-and a term is kept when its candidate's mean squared equation residual on the held-out samples is
-at least ``GAIN`` (5 %) lower than the network alone's. The terms kept together are then fitted on the whole record (the
-fit already made when every term is kept, the fit without any when none is).
+held out are those at the ends of the range: for every neural curve, the outer ``TAIL`` of its
+weight in the equation at either end (of the samples, for a curve that enters alone; a curve
+times a velocity is held out where the record still says something about it). Sets of the added
+terms (:func:`candidates`: every subset of up to two terms, else none, each alone and all) are
+fitted beside the networks on the other samples, and the set kept is the smallest whose mean
+squared equation residual on the held-out samples is within ``GAIN`` (5 %) of the lowest: a term
+stays only where it lowers that error by 5 %. The set kept is then fitted on the whole record
+(no new fit when every term is kept: the first fit is that one).
 
 Why not a criterion on the whole record: on the first-order system (f2 = 0.5 + x^2, 25 dB on F)
 the network alone reached a LOWER loss than the network with its quadratic (0.00747 against
@@ -26,7 +27,8 @@ import numpy as np
 
 from ._auto_terms import describe
 
-__all__ = ["TAIL", "added_terms", "choose_terms", "heldout_mask", "layout_with", "term_label"]
+__all__ = ["GAIN", "TAIL", "added_terms", "candidates", "choose", "choose_terms", "heldout_mask", "layout_with",
+           "term_label"]
 
 #: the fraction of the samples held out at each end of every neural curve's argument range
 TAIL = 0.05
@@ -105,16 +107,53 @@ def _heldout_error(model, record, held) -> float:
     return float(np.mean(r**2)) if r.size else float("inf")
 
 
+def candidates(terms) -> list[tuple]:
+    """The sets of terms fitted on the reduced record: every subset of up to two terms; of more,
+    none, each alone and all (``1 + n + 1`` fits in place of ``2^n``).
+
+    Examples
+    --------
+    >>> from charcurves.fitting._heldout_terms import candidates
+    >>> candidates(["a", "b"])
+    [(), ('a',), ('b',), ('a', 'b')]
+    >>> len(candidates(["a", "b", "c", "d"]))
+    6
+    """
+    terms = list(terms)
+    out: list[tuple] = [()] + [(t,) for t in terms]
+    if len(terms) > 1:
+        out.append(tuple(terms))
+    return out
+
+
+def choose(errors: dict, gain: float = GAIN) -> tuple:
+    """The set of terms to keep from ``{terms: held-out error}``: the fewest terms whose error is
+    within ``gain`` of the lowest (``error * (1 - gain) <= lowest``); of those, the lowest error.
+
+    Examples
+    --------
+    >>> from charcurves.fitting._heldout_terms import choose
+    >>> choose({(): 0.0339, ("f1^3",): 0.00845, ("f2^2",): 0.0348, ("f1^3", "f2^2"): 0.0070})
+    ('f1^3', 'f2^2')
+    >>> choose({(): 0.00449, ("jump",): 0.00436})  # 3 % lower: not enough
+    ()
+    """
+    best = min(errors.values())
+    near = [c for c, e in errors.items() if e * (1.0 - gain) <= best]
+    return min(near, key=lambda c: (len(c), errors[c]))
+
+
 def choose_terms(records, models, masks, tested, plain, template, names, fit, tail: float = TAIL,
                  gain: float = GAIN):
     """Per record, the automatic terms to keep and the models of the kept layout.
 
     ``fit(indices, layouts, masks)`` fits records ``indices`` (repeats allowed) with those layouts
-    and sample masks and returns their models. A term stays where its held-out error is below
-    ``(1 - gain)`` times the network alone's. Records whose tests added nothing keep their model.
-    Returns ``(models, layouts, notes)``; a note (for ``info["automatic_terms"]``) lists the terms
-    tested and kept, the held-out mean squared residual of each candidate and the samples held out,
-    None where nothing was added."""
+    and sample masks and returns their models. Each set of :func:`candidates` is fitted on the
+    record less its :func:`heldout_mask` and the set kept is :func:`choose`'s. Records whose tests
+    added nothing keep their model; so does a record that keeps every term (its first fit is the
+    fit of that layout). Returns ``(models, layouts, notes)``; a note (for
+    ``info["automatic_terms"]``) lists the terms tested and kept, the held-out mean squared
+    residual of each set and the samples held out, None where nothing was added."""
     n_rec = len(records)
     notes: list = [None] * n_rec
     layouts, out = list(tested), list(models)
@@ -122,21 +161,22 @@ def choose_terms(records, models, masks, tested, plain, template, names, fit, ta
     if not terms:
         return out, layouts, notes
     held = {i: heldout_mask(records[i], template, names, masks[i], tail) for i in terms}
-    jobs = [(i, None) for i in terms] + [(i, t) for i in terms for t in terms[i]]
-    screened = fit([i for i, _ in jobs],
-                   [plain[i] if t is None else layout_with(tested[i], plain[i], [t]) for i, t in jobs],
+    jobs = [(i, c) for i in terms for c in candidates(terms[i])]
+    screened = fit([i for i, _ in jobs], [layout_with(tested[i], plain[i], c) for i, c in jobs],
                    [masks[i] & ~held[i] for i, _ in jobs])
-    scores = {job: _heldout_error(m, records[job[0]], held[job[0]]) for job, m in zip(jobs, screened)}
+    errors: dict = {i: {} for i in terms}
+    for (i, c), m in zip(jobs, screened):
+        errors[i][c] = _heldout_error(m, records[i], held[i])
     refit = []
-    for i, ts in terms.items():
-        base = scores[(i, None)]
-        kept = [t for t in ts if scores[(i, t)] < (1.0 - gain) * base]
+    for i in terms:
+        kept = choose(errors[i], gain)
         layouts[i] = layout_with(tested[i], plain[i], kept)
         if layouts[i] != tested[i]:
             refit.append(i)
         notes[i] = {"rule": "held-out", "tested": describe(tested[i]), "kept": [term_label(t) for t in kept],
-                    "held_out_samples": int(held[i].sum()), "held_out_mse": {"network alone": base,
-                    **{term_label(t): scores[(i, t)] for t in ts}}}
+                    "held_out_samples": int(held[i].sum()),
+                    "held_out_mse": {" + ".join(term_label(t) for t in c) or "network alone": e
+                                     for c, e in errors[i].items()}}
     if refit:
         for i, m in zip(refit, fit(refit, [layouts[i] for i in refit], [masks[i] for i in refit])):
             out[i] = m
