@@ -44,8 +44,11 @@ LIMIT = "limit"
 METHODS = ("nn-cc", "nn-cc+sym", "poly-cc", "sindy-cc+sym", "nn-cc+post-sr", LIMIT)
 ODD_ONLY = ("nn-cc+sym", "sindy-cc+sym")
 #: method labels "METHOD/VARIANT": the method with its default preset changed (issue 46, item 2):
-#: "no-auto" without the automatic terms, "unchecked" with them but not checked on held-out blocks
-VARIANTS = {"no-auto": {"auto_terms": False}, "unchecked": {"check_auto_terms": False}, "checked": {"check_auto_terms": True}}
+#: "no-auto" without the automatic terms, "unchecked" with them but not checked, "checked" kept by
+#: AIC, "heldout" chosen per term on the samples held out at the ends of the range
+VARIANTS = {"no-auto": {"auto_terms": False}, "unchecked": {"check_auto_terms": False},
+            "checked": {"check_auto_terms": True, "auto_terms_rule": "aic"},
+            "heldout": {"check_auto_terms": True, "auto_terms_rule": "held-out"}}
 #: every label a table may show, in table order (the variants after their method)
 LABELS = tuple(x for m in METHODS for x in [m] + ([f"{m}/{v}" for v in VARIANTS] if m in ("nn-cc", "nn-cc+sym") else []))
 #: setting -> (noise on, SNR in dB)

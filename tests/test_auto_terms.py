@@ -14,7 +14,8 @@ from charcurves.fitting._auto_terms import aic, check_layouts, describe
 from charcurves.fitting._fit_path import resolve_jumps
 from charcurves.templates import get_template
 
-QUICK = PRESETS["default"].replace(n_starts=1, adam_steps=20, lm_max_iter=5, check_auto_terms=True)
+QUICK = PRESETS["default"].replace(n_starts=1, adam_steps=20, lm_max_iter=5, check_auto_terms=True,
+                                   auto_terms_rule="aic")
 CUBIC = ((), (("f2", (3,)),), ())
 NONE = ((), (), ())
 
@@ -91,5 +92,6 @@ def test_the_zoo_runs_a_method_without_its_automatic_terms_under_its_own_label()
     assert len(jobs) == 2 * (len(odd) + len(zoo.SYSTEMS)) and {j[2] for j in jobs} == {"F25", "x30"}
     assert {j[0] for j in jobs if j[1] == "nn-cc+sym/no-auto"} == set(odd)
     assert bench_zoo.VARIANTS == {"no-auto": {"auto_terms": False}, "unchecked": {"check_auto_terms": False},
-                                  "checked": {"check_auto_terms": True}}
+                                  "checked": {"check_auto_terms": True, "auto_terms_rule": "aic"},
+                                  "heldout": {"check_auto_terms": True, "auto_terms_rule": "held-out"}}
     assert bench_zoo.LABELS.index("nn-cc/no-auto") == bench_zoo.LABELS.index("nn-cc") + 1

@@ -11,8 +11,11 @@ parameters of the fit; a fit without Bayesian regularisation counts its added te
 of the error on data the fit has not seen. Both fits are of the whole record: the one kept is the
 answer, no third fit is made.
 
-``TrainingPreset(auto_terms=False)`` turns the automatic terms off (only the terms a curve or the
-preset names stay); ``check_auto_terms=False`` keeps whatever the tests add, unchecked.
+This is ``TrainingPreset(auto_terms_rule="aic")``; the default rule chooses per term on held-out
+samples (:mod:`._heldout_terms`), since on polynomial truths the whole-record criterion dropped
+terms the curves need. ``TrainingPreset(auto_terms=False)`` turns the automatic terms off (only
+the terms a curve or the preset names stay); ``check_auto_terms=False`` keeps whatever the tests
+add, unchecked.
 """
 
 from __future__ import annotations

@@ -107,22 +107,32 @@ def _fit_stage(est, records: list, seeds):
     models = fit_records(prepared, structure, reps, fit_preset, seeds, masks=masks, jumps=jumps, **fit_kw)
     if kind == "gradient" and preset.auto_terms and preset.check_auto_terms and \
             not any(m.info.get("interrupted") for m in models):
-        # a term a test added stays only where the fit with it is the better model (._auto_terms)
-        from ._auto_terms import check_layouts
-
+        # a term a test added stays only where it helps (held out: ._heldout_terms; AIC: ._auto_terms)
         plain = resolve_jumps(reps, prepared, structure, estimated, preset, automatic=False)
-        models, notes = check_layouts(
-            prepared, models, masks, jumps, plain, n_equations=structure.n_equations,
-            refit=lambda idx: fit_records([prepared[i] for i in idx], structure, reps, fit_preset,
-                                          [seeds[i] for i in idx], masks=[masks[i] for i in idx],
-                                          jumps=[plain[i] for i in idx], **fit_kw))
-        jumps = [j if note is None or note["kept"] else p for j, p, note in zip(jumps, plain, notes)]
+        models, jumps, notes = _check_terms(prepared, models, masks, jumps, plain, structure, reps, preset,
+                                            lambda idx, lay, msk: fit_records(
+                                                [prepared[i] for i in idx], structure, reps, fit_preset,
+                                                [seeds[i] for i in idx], masks=list(msk), jumps=list(lay), **fit_kw))
         for m, note in zip(models, notes):
             if note is not None:
                 m.info["automatic_terms"] = note
     return {"models": models, "prepared": prepared, "estimated": estimated, "seeds": seeds,
             "objective": objective, "preset": preset, "reps": reps, "structure": structure, "sym": sym,
             "method": method, "diff": diff, "jumps": jumps, "use_oe": use_oe, "masks": masks}
+
+
+def _check_terms(prepared, models, masks, jumps, plain, structure, reps, preset, fit):
+    """The models and layouts after the check of the automatic terms that ``preset.auto_terms_rule`` names."""
+    if preset.auto_terms_rule == "aic":
+        from ._auto_terms import check_layouts
+
+        models, notes = check_layouts(prepared, models, masks, jumps, plain, n_equations=structure.n_equations,
+                                      refit=lambda idx: fit(idx, [plain[i] for i in idx], [masks[i] for i in idx]))
+        return models, [j if n is None or n["kept"] else p for j, p, n in zip(jumps, plain, notes)], notes
+    from ._heldout_terms import choose_terms
+
+    names = [n for n, r in reps.items() if r.kind == "neural"]
+    return choose_terms(prepared, models, masks, jumps, plain, structure, names, fit)
 
 
 def run_pipeline(est, records: list, seeds=None) -> list:

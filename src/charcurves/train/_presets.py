@@ -60,10 +60,14 @@ class TrainingPreset:
         ``harmonics="auto"``, ``jump="auto"``). False: only the terms a curve or the preset names,
         e.g. to measure a fit without the automatic terms.
     check_auto_terms : bool
-        Keep the terms the tests add only where the fit with them has the lower Akaike criterion
-        than a second fit of the record without them (one extra fit where a test added a term; see
-        ``charcurves.fitting._auto_terms``). Off by default: on polynomial truths the criterion
-        dropped terms the curve needs (docs/training-defaults.md).
+        Keep a term the tests add only where it helps, by ``auto_terms_rule`` (docs/training-defaults.md).
+    auto_terms_rule : {"held-out", "aic"}
+        How ``check_auto_terms`` judges the terms. ``"held-out"``: per term, the network alone and
+        the network with that one term are fitted on the record less the ends of every curve's
+        range (5 % of the samples at each end), and the term stays where it predicts those ends
+        better (``charcurves.fitting._heldout_terms``; 1 + (number of terms) fits on the reduced
+        record, one more where the choice differs from the tests'). ``"aic"``: all terms or none,
+        by the Akaike criterion of two fits of the whole record (``charcurves.fitting._auto_terms``).
 
     Examples
     --------
@@ -102,6 +106,7 @@ class TrainingPreset:
     auto_jump: bool = True
     auto_terms: bool = True
     check_auto_terms: bool = False
+    auto_terms_rule: str = "held-out"
     bayesian: bool = True
     decay_groups: str = "per-layer"
 
@@ -114,6 +119,8 @@ class TrainingPreset:
         if self.decay_groups not in ("shared", "per-curve", "per-layer"):
             raise ConfigError(
                 f"decay_groups must be 'shared', 'per-curve' or 'per-layer', got {self.decay_groups!r}")
+        if self.auto_terms_rule not in ("held-out", "aic"):
+            raise ConfigError(f"auto_terms_rule must be 'held-out' or 'aic', got {self.auto_terms_rule!r}")
         if self.combine not in ("mean", "best"):
             raise ConfigError(f"combine must be 'mean' or 'best', got {self.combine!r}")
         if self.n_starts < 1:
