@@ -22,7 +22,8 @@ def _progress_printer(enabled: bool):
         now = time.monotonic()
         if now - last[0] >= 2.0:
             last[0] = now
-            print(f"  [{phase}] {step}/{total}  loss {loss:.4g}  (Ctrl-C stops and keeps the best model so far)",
+            shown = f"  loss {loss:.4g}" if loss == loss else ""  # nan: a search, whose loss is not known yet
+            print(f"  [{phase}] {step}/{total}{shown}  (Ctrl-C stops and keeps the best model so far)",
                   file=sys.stderr, flush=True)
 
     return report
