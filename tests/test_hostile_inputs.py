@@ -6,6 +6,7 @@ process), or ends in the documented bounded behaviour that the test asserts.
 
 from __future__ import annotations
 
+import json
 import os
 
 import numpy as np
@@ -122,15 +123,41 @@ def test_an_offset_that_swamps_the_motion_in_float64_is_refused(tmp_path, capsys
     assert not (tmp_path / "out").exists()
 
 
-def test_a_moderate_offset_is_warned_and_none_without_one():
+def test_a_record_resting_far_from_0_is_fitted_without_a_warning(tmp_path, capsys):
+    """A level sensor: the Duffing record shifted by 10 (about 15 standard deviations; before: warned
+    at 5). The gauge anchored at 0 outside the data moves no residual: poly-cc fits it at its
+    noise floor, and it gets no record warning."""
+    from charcurves.data import corrupt
+
+    tr = corrupt(_duffing(), 30.0, on="state", seed=0)
+    shifted = tr.replace(x=np.asarray(tr.x) + 10.0)
+    assert shifted.quality_warnings() == []
+    path = _write_record(tmp_path / "r.csv", shifted.t, shifted.x, shifted.F)
+    out = tmp_path / "o"
+    assert main(["fit", path, "--out", str(out), "--method", "poly-cc", "--no-figure", "--quiet"]) == 0
+    res = json.loads((out / "result.json").read_text())
+    assert res["warnings"] == [] and 0.5 < res["loss_over_floor"][0] < 2.0
+
+
+def test_an_offset_near_the_precision_limit_is_warned_naming_the_digits_kept():
     tr = _duffing()
-    assert tr.quality_warnings() == []
-    centre = float(np.median(tr.x)) + 10.0
-    (line,) = tr.replace(x=np.asarray(tr.x) + 10.0).quality_warnings()
-    assert line.startswith(f"x is centred at {centre:.6g}, ")
-    assert "the curves of x are anchored at x = 0, outside the data" in line
-    assert f"subtract the offset (x - {centre:.6g})" in line
-    assert tr.replace(x=np.asarray(tr.x) + 2.0).quality_warnings() == []  # 2 is within 5 standard deviations
+    motion = float(np.std(tr.x - np.median(tr.x)))
+    centre = 1e5 * motion + float(np.median(tr.x))  # 1e5 standard deviations: past 1e4, below the refusal at 1e6
+    (line,) = tr.replace(x=np.asarray(tr.x) + 1e5 * motion).quality_warnings()
+    assert line.startswith(f"x is centred at {centre:.6g}, 1e+05 standard deviations from 0: its motion keeps "
+                           "about 11 of float64's 16 digits (the single-precision SR search about 2 of 7), and "
+                           "derivatives lose more; subtract the offset (x - ")
+    assert tr.replace(x=np.asarray(tr.x) + 5e3 * motion).quality_warnings() == []  # 5e3 < 1e4 sd
+
+
+def test_a_parity_prior_on_a_range_without_0_is_refused(tmp_path, capsys):
+    """What a one-sided range does break: a parity prior, which ties the curve to data across 0."""
+    tr = _duffing()
+    path = _write_record(tmp_path / "r.csv", tr.t, np.asarray(tr.x) + 10.0, tr.F)
+    line = _one_line_exit_2(capsys, "fit", path, "--out", tmp_path / "out", "--method", "poly-cc", "--sym", "f2=odd")
+    assert line.startswith("charcurves: error: an odd prior on f2 needs its argument x on both sides of 0, but the "
+                           "record as the differentiator smoothed it covers only [")
+    assert "so the prior can be neither checked nor used; drop it" in line
 
 
 def test_a_time_step_of_milliseconds_names_the_time_units(tmp_path, capsys):
