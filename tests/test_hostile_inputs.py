@@ -139,6 +139,42 @@ def test_a_record_resting_far_from_0_is_fitted_without_a_warning(tmp_path, capsy
     assert res["warnings"] == [] and 0.5 < res["loss_over_floor"][0] < 2.0
 
 
+def _shifted_fit(method: str, shift: float):
+    from charcurves.data import corrupt
+    from charcurves.fitting import CharacteristicCurves
+
+    tr = corrupt(_duffing(), 30.0, on="state", seed=0)
+    return CharacteristicCurves.from_method(method, random_state=0).fit(tr.replace(x=np.asarray(tr.x) + shift)).model_
+
+
+def test_a_misfit_on_a_range_far_from_0_names_the_offset_and_a_good_fit_says_nothing():
+    """The rule's both sides on real models: a fit whose self-check warned (the warning put in by hand:
+    poly-cc fits this record at its floor) names each curve argument whose range excludes 0; a
+    fit without a self-check warning, or on a range that contains 0, gets no line."""
+    from charcurves.fitting._offsets import name_offset_in_warnings
+
+    far, near = _shifted_fit("poly-cc", 10.0), _shifted_fit("poly-cc", 0.0)
+    assert not far.info.get("warnings") and not near.info.get("warnings")  # no misfit: nothing said
+    misfit = "self-check: the loss is 85 times the noise floor"
+    for model in (far, near):
+        model.info["warnings"] = [misfit]
+        name_offset_in_warnings(model)
+    lo, hi = far.curves["f2"].domain
+    assert far.info["warnings"] == [misfit, (
+        f"self-check: the argument x of f2 lies in [{lo:.4g}, {hi:.4g}], which does not contain 0, a likely cause of "
+        f"the misfit; subtract the offset (x - {0.5 * (lo + hi):.4g}) and fit again")]
+    assert near.info["warnings"] == [misfit]  # x and x' cross 0
+
+
+@pytest.mark.slow
+def test_a_neural_fit_far_from_0_names_the_offset_in_its_warnings():
+    """Measured: nn-cc fits the shifted record at 84.7 times its noise floor (unshifted 1.01)."""
+    model = _shifted_fit("nn-cc", 10.0)
+    assert model.info["self_check"]["loss_over_floor"][0] > 10
+    (line,) = [w for w in model.info["warnings"] if w.startswith("self-check: the argument x of f2 lies in [")]
+    assert "(a neural curve sees it squeezed near 1 by its input scale z / max|z|)" in line
+
+
 def test_an_offset_near_the_precision_limit_is_warned_naming_the_digits_kept():
     tr = _duffing()
     motion = float(np.std(tr.x - np.median(tr.x)))
