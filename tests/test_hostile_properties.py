@@ -85,3 +85,51 @@ def test_start_without_measured_is_refused(tmp_path, capsys):
     assert main(["fit", str(tmp_path / "r.csv"), "--out", str(tmp_path / "o"), "--start", "linear"]) == 2
     assert capsys.readouterr().err.startswith("charcurves: error: --start does not apply here: it chooses the starts "
                                               "of a hidden-state fit, and --measured is not given; ")
+
+
+def _one_line(capsys, argv) -> str:
+    from charcurves.cli import main
+
+    capsys.readouterr()
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    return err.strip()
+
+
+def test_a_record_given_twice_to_fit_is_refused(tmp_path, capsys):
+    """Before: fitted as two independent records of the same samples (exit 0)."""
+    csv = tmp_path / "r.csv"
+    csv.write_text("t,x,F\n0,0,0\n1,1,1\n")
+    line = _one_line(capsys, ["fit", str(csv), str(tmp_path / "." / "r.csv"), "--out", str(tmp_path / "o")])
+    assert line == (f"charcurves: error: the record {str(tmp_path / '.' / 'r.csv')!r} is given twice (also as "
+                    f"{str(csv)!r}); give each record once")
+
+
+@pytest.mark.parametrize("extra, flag", [(["--systems", "duffing"], "--systems"), (["--methods", "poly-cc"], "--methods"),
+                                         (["--snr", "20"], "--snr"), (["--workers", "2"], "--workers"),
+                                         (["--preset", "paper"], "--preset"), (["--report-only"], "--report-only")])
+def test_an_option_of_the_paper_study_is_refused_with_real(tmp_path, capsys, extra, flag):
+    """Before: ``benchmark --real silverbox --systems duffing`` dropped --systems without a word."""
+    line = _one_line(capsys, ["benchmark", "--real", "silverbox", "--data-dir", str(tmp_path), "--out",
+                              str(tmp_path / "o"), *extra])
+    assert line == (f"charcurves: error: {flag} does not apply to --real (a real benchmark runs its own fit and test, "
+                    f"with --data-dir, --seed and --out only); drop {flag}")
+
+
+def test_bands_kind_with_posterior_bands_is_refused(tmp_path, capsys):
+    """Before: ``--bands posterior --bands-kind seeds`` ran and ignored --bands-kind."""
+    line = _one_line(capsys, ["fit", str(tmp_path / "r.csv"), "--out", str(tmp_path / "o"), "--bands", "posterior",
+                              "--bands-kind", "seeds"])
+    assert line == ("charcurves: error: --bands-kind does not apply here: it chooses the refits of --bands N, and "
+                    "--bands posterior refits nothing; drop --bands-kind or give --bands 8 (see 'charcurves fit --help')")
+
+
+@pytest.mark.parametrize("text", ["", ",,,", " ; "])
+def test_no_sr_operators_at_all_says_so(text):
+    """Before: "operators () have no binary operator"."""
+    from charcurves.symbolic._engine import check_operators
+
+    with pytest.raises(ConfigError, match=r"^no operators given; give auto or names from add, sub, mul, div, pow, .*"
+                                          r"\(e\.g\. add,sub,mul,tanh\)$"):
+        check_operators(text)

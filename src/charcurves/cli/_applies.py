@@ -80,6 +80,9 @@ def _check_fit(a) -> None:
             asked = "--objective equation-error" if a.objective == "equation-error" else f"--refine {a.refine}"
             _refuse("fit", given[0], f"it sets the output-error refit, which {asked} turns off",
                     f"drop {given[0]} or use --objective output-error (or auto)")
+    if a.bands == "posterior" and a.bands_kind is not None:
+        _refuse("fit", "--bands-kind", "it chooses the refits of --bands N, and --bands posterior refits nothing",
+                "drop --bands-kind or give --bands 8")
     if a.bands is None:
         for key, flag in (("bands_kind", "--bands-kind"), ("bands_level", "--bands-level")):
             if getattr(a, key) is not None:

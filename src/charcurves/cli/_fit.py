@@ -277,8 +277,13 @@ def cmd_fit(a) -> int:
 
     paths = [a.csv] if isinstance(a.csv, str) else list(a.csv)
     outputs = [os.path.join(a.out, name) for name in FIT_OUTPUTS + (FOLDER_LOCK_NAME,)]
+    seen: dict[str, str] = {}
     for path in paths:
         refuse_inputs_among_outputs({"record": path}, outputs)
+        key = os.path.realpath(path)
+        if key in seen:  # the same samples twice would count as two independent records
+            raise UsageError(f"the record {path!r} is given twice (also as {seen[key]!r}); give each record once")
+        seen[key] = path
     if getattr(a, "measured", None):
         if len(paths) > 1:
             raise UsageError("--measured (hidden states) takes one record; fit one CSV file")

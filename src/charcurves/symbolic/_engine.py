@@ -135,6 +135,8 @@ def check_operators(ops) -> tuple[str, ...]:
         ops = tuple(str(o).strip().lower() for o in ops)
     except TypeError:
         raise ConfigError(f"operators must be 'auto' or a list of names like ('add', 'sub', 'mul', 'tanh'), got {ops!r}") from None
+    if not ops:
+        raise ConfigError(f"no operators given; give auto or names from {', '.join(OPERATORS)} (e.g. add,sub,mul,tanh)")
     bad = [o for o in ops if o not in OPERATORS]
     if bad:
         raise ConfigError(f"unknown operator(s) {bad}; give auto or names from {', '.join(OPERATORS)} "
