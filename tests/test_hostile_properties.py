@@ -62,7 +62,8 @@ TANKS = "x1' = g*F - f1(x1); x2' = f1(x1) - f2(x2)"
 @pytest.mark.parametrize("extra, flag", [(["--bands", "4"], "--bands"), (["--method", "sr"], "--method"),
                                          (["--sym", "f1=odd"], "--sym"), (["--objective", "equation-error"], "--objective"),
                                          (["--long-record"], "--long-record"), (["--x-col", "F"], "--x-col"),
-                                         (["--sr-generations", "5"], "--sr-generations"), (["--truth", "duffing"], "--truth")])
+                                         (["--sr-generations", "5"], "--sr-generations"), (["--truth", "duffing"], "--truth"),
+                                         (["--family", "first-order"], "--family")])
 def test_an_option_a_hidden_state_fit_does_not_use_is_refused(tmp_path, capsys, extra, flag):
     """Before: ``--measured`` ran its own fit and dropped these without a word (``--bands 4`` gave no bands)."""
     from charcurves.cli import main
@@ -133,3 +134,16 @@ def test_no_sr_operators_at_all_says_so(text):
     with pytest.raises(ConfigError, match=r"^no operators given; give auto or names from add, sub, mul, div, pow, .*"
                                           r"\(e\.g\. add,sub,mul,tanh\)$"):
         check_operators(text)
+
+
+def test_a_named_pipe_in_place_of_the_silverbox_record_is_named_as_such(tmp_path):
+    """Before: "no Silverbox record at ..." although a FIFO was there (never opened: it would block)."""
+    import os
+
+    from charcurves.datasets import silverbox
+
+    (tmp_path / "silverbox").mkdir()
+    os.mkfifo(tmp_path / "silverbox" / "SNLS80mV.csv")
+    with pytest.raises(ConfigError, match=r"SNLS80mV\.csv is not a regular file \(a folder, named pipe or device\); "
+                                          r"save the benchmark's SNLS80mV\.csv there as a file$"):
+        silverbox(data_dir=str(tmp_path))

@@ -35,7 +35,7 @@ def _refuse(command: str, option: str, why: str, fix: str) -> None:
 
 
 #: what a hidden-state fit (``--measured``) does not use, with each option's value when not given
-_NOT_HIDDEN = (("method", "--method", None), ("sym", "--sym", None), ("gauge", "--gauge", None),
+_NOT_HIDDEN = (("family", "--family", "separable"), ("method", "--method", None), ("sym", "--sym", None), ("gauge", "--gauge", None),
                ("noisy_side", "--noisy-side", None), ("preset", "--preset", "default"),
                ("derivatives", "--derivatives", "auto"), ("jump", "--jump", "auto"), ("basis", "--basis", None),
                *((key, flag, None) for key, flag in _SR_FLAGS), ("keep_sticking", "--keep-sticking", False),
