@@ -167,7 +167,9 @@ def _kept(out, tail, returncode, *, skipped: str | None = None):
 
     assert returncode == 130, "\n".join(tail)
     assert not any("Traceback" in line for line in tail), "\n".join(tail)
-    assert HELD in tail
+    # the second signal is held (HELD is printed), unless the two arrived while the main thread ran C
+    # code, where Python runs one handler for both
+    assert all(line == HELD or not line.startswith("charcurves: interrupted again") for line in tail)
     if skipped is None:
         assert tail[-1] == (f"charcurves: interrupted; kept the best model so far in {out / 'model'} (result.json "
                             "marked interrupted); rerun to finish the fit")
