@@ -6,6 +6,7 @@ process), or ends in the documented bounded behaviour that the test asserts.
 
 from __future__ import annotations
 
+import json
 import os
 
 import numpy as np
@@ -122,15 +123,77 @@ def test_an_offset_that_swamps_the_motion_in_float64_is_refused(tmp_path, capsys
     assert not (tmp_path / "out").exists()
 
 
-def test_a_moderate_offset_is_warned_and_none_without_one():
+def test_a_record_resting_far_from_0_is_fitted_without_a_warning(tmp_path, capsys):
+    """A level sensor: the Duffing record shifted by 10 (about 15 standard deviations; before: warned
+    at 5). The gauge anchored at 0 outside the data moves no residual: poly-cc fits it at its
+    noise floor, and it gets no record warning."""
+    from charcurves.data import corrupt
+
+    tr = corrupt(_duffing(), 30.0, on="state", seed=0)
+    shifted = tr.replace(x=np.asarray(tr.x) + 10.0)
+    assert shifted.quality_warnings() == []
+    path = _write_record(tmp_path / "r.csv", shifted.t, shifted.x, shifted.F)
+    out = tmp_path / "o"
+    assert main(["fit", path, "--out", str(out), "--method", "poly-cc", "--no-figure", "--quiet"]) == 0
+    res = json.loads((out / "result.json").read_text())
+    assert res["warnings"] == [] and 0.5 < res["loss_over_floor"][0] < 2.0
+
+
+def _shifted_fit(method: str, shift: float):
+    from charcurves.data import corrupt
+    from charcurves.fitting import CharacteristicCurves
+
+    tr = corrupt(_duffing(), 30.0, on="state", seed=0)
+    return CharacteristicCurves.from_method(method, random_state=0).fit(tr.replace(x=np.asarray(tr.x) + shift)).model_
+
+
+def test_a_misfit_on_a_range_far_from_0_names_the_offset_and_a_good_fit_says_nothing():
+    """The rule's both sides on real models: a fit whose self-check warned (the warning put in by hand:
+    poly-cc fits this record at its floor) names each curve argument whose range excludes 0; a
+    fit without a self-check warning, or on a range that contains 0, gets no line."""
+    from charcurves.fitting._offsets import name_offset_in_warnings
+
+    far, near = _shifted_fit("poly-cc", 10.0), _shifted_fit("poly-cc", 0.0)
+    assert not far.info.get("warnings") and not near.info.get("warnings")  # no misfit: nothing said
+    misfit = "self-check: the loss is 85 times the noise floor"
+    for model in (far, near):
+        model.info["warnings"] = [misfit]
+        name_offset_in_warnings(model)
+    lo, hi = far.curves["f2"].domain
+    assert far.info["warnings"] == [misfit, (
+        f"self-check: the argument x of f2 lies in [{lo:.4g}, {hi:.4g}], which does not contain 0, a likely cause of "
+        f"the misfit; subtract the offset (x - {0.5 * (lo + hi):.4g}) and fit again")]
+    assert near.info["warnings"] == [misfit]  # x and x' cross 0
+
+
+@pytest.mark.slow
+def test_a_neural_fit_far_from_0_names_the_offset_in_its_warnings():
+    """Measured: nn-cc fits the shifted record at 84.7 times its noise floor (unshifted 1.01)."""
+    model = _shifted_fit("nn-cc", 10.0)
+    assert model.info["self_check"]["loss_over_floor"][0] > 10
+    (line,) = [w for w in model.info["warnings"] if w.startswith("self-check: the argument x of f2 lies in [")]
+    assert "(a neural curve sees it squeezed near 1 by its input scale z / max|z|)" in line
+
+
+def test_an_offset_near_the_precision_limit_is_warned_naming_the_digits_kept():
     tr = _duffing()
-    assert tr.quality_warnings() == []
-    centre = float(np.median(tr.x)) + 10.0
-    (line,) = tr.replace(x=np.asarray(tr.x) + 10.0).quality_warnings()
-    assert line.startswith(f"x is centred at {centre:.6g}, ")
-    assert "the curves of x are anchored at x = 0, outside the data" in line
-    assert f"subtract the offset (x - {centre:.6g})" in line
-    assert tr.replace(x=np.asarray(tr.x) + 2.0).quality_warnings() == []  # 2 is within 5 standard deviations
+    motion = float(np.std(tr.x - np.median(tr.x)))
+    centre = 1e5 * motion + float(np.median(tr.x))  # 1e5 standard deviations: past 1e4, below the refusal at 1e6
+    (line,) = tr.replace(x=np.asarray(tr.x) + 1e5 * motion).quality_warnings()
+    assert line.startswith(f"x is centred at {centre:.6g}, 1e+05 standard deviations from 0: its motion keeps "
+                           "about 11 of float64's 16 digits (the single-precision SR search about 2 of 7), and "
+                           "derivatives lose more; subtract the offset (x - ")
+    assert tr.replace(x=np.asarray(tr.x) + 5e3 * motion).quality_warnings() == []  # 5e3 < 1e4 sd
+
+
+def test_a_parity_prior_on_a_range_without_0_is_refused(tmp_path, capsys):
+    """What a one-sided range does break: a parity prior, which ties the curve to data across 0."""
+    tr = _duffing()
+    path = _write_record(tmp_path / "r.csv", tr.t, np.asarray(tr.x) + 10.0, tr.F)
+    line = _one_line_exit_2(capsys, "fit", path, "--out", tmp_path / "out", "--method", "poly-cc", "--sym", "f2=odd")
+    assert line.startswith("charcurves: error: an odd prior on f2 needs its argument x on both sides of 0, but the "
+                           "record as the differentiator smoothed it covers only [")
+    assert "so the prior can be neither checked nor used; drop it" in line
 
 
 def test_a_time_step_of_milliseconds_names_the_time_units(tmp_path, capsys):

@@ -34,9 +34,36 @@ def _refuse(command: str, option: str, why: str, fix: str) -> None:
     raise UsageError(f"{option} does not apply here: {why}; {fix} (see 'charcurves {command} --help')")
 
 
+#: what a hidden-state fit (``--measured``) does not use, with each option's value when not given
+_NOT_HIDDEN = (("family", "--family", "separable"), ("method", "--method", None), ("sym", "--sym", None), ("gauge", "--gauge", None),
+               ("noisy_side", "--noisy-side", None), ("preset", "--preset", "default"),
+               ("derivatives", "--derivatives", "auto"), ("jump", "--jump", "auto"), ("basis", "--basis", None),
+               *((key, flag, None) for key, flag in _SR_FLAGS), ("keep_sticking", "--keep-sticking", False),
+               ("x_col", "--x-col", "x"), ("force_col", "--force-col", "F"), ("sample_rate", "--sample-rate", None),
+               ("long_record", "--long-record", False), ("truth", "--truth", None), ("threads", "--threads", None),
+               ("device", "--device", "cpu"), ("objective", "--objective", None), ("refine", "--refine", None),
+               *((key, flag, None) for key, flag in _OE_FLAGS), ("snr", "--snr", None), ("bands", "--bands", None),
+               ("report", "--report", False))
+
+
+def _check_hidden(a) -> None:
+    """``--measured`` runs its own output-error fit of a state-space template: the options of the other
+    fits do not reach it (before: ``--bands``, ``--method``, ``--sym`` ... were dropped without a word)."""
+    if getattr(a, "measured", None) is None:
+        if getattr(a, "start", "growing") != "growing":
+            _refuse("fit", "--start", "it chooses the starts of a hidden-state fit, and --measured is not given",
+                    "add --measured STATE=COLUMN (with --equation) or drop --start")
+        return
+    for key, flag, unset in _NOT_HIDDEN:
+        if getattr(a, key, unset) != unset:
+            _refuse("fit", flag, "a hidden-state fit (--measured) takes the record, --equation, --free-gain, --start, "
+                                 "--seed, --time-col and --rows only", f"drop {flag}")
+
+
 def _check_fit(a) -> None:
     from ..fitting import METHODS
 
+    _check_hidden(a)
     spec = METHODS.get(a.method) if a.method is not None else None
     if a.basis is not None and a.method != "parametric":
         _refuse("fit", "--basis", f"it gives the functions of --method parametric, and the method is "
@@ -53,6 +80,9 @@ def _check_fit(a) -> None:
             asked = "--objective equation-error" if a.objective == "equation-error" else f"--refine {a.refine}"
             _refuse("fit", given[0], f"it sets the output-error refit, which {asked} turns off",
                     f"drop {given[0]} or use --objective output-error (or auto)")
+    if a.bands == "posterior" and a.bands_kind is not None:
+        _refuse("fit", "--bands-kind", "it chooses the refits of --bands N, and --bands posterior refits nothing",
+                "drop --bands-kind or give --bands 8")
     if a.bands is None:
         for key, flag in (("bands_kind", "--bands-kind"), ("bands_level", "--bands-level")):
             if getattr(a, key) is not None:

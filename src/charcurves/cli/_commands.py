@@ -176,7 +176,19 @@ def cmd_benchmark(a) -> int:
     from ..experiments import BENCHMARK_SECTIONS, BENCHMARK_SYSTEMS as SYSTEMS, parse_name_list, parse_snr_list, run_benchmark
     from ..fitting import METHODS
 
-    if a.real is not None:
+    if a.real is not None:  # its own fit and test: the options of the paper's study do not reach it
+        given = [flag for flag, v in (("--systems", None if a.systems == "duffing,stick-slip" else a.systems),
+                                      ("--methods", a.methods), ("--snr", a.snr), ("--realizations", a.realizations),
+                                      ("--full", a.full or None), ("--preset", None if a.preset == "default" else 1),
+                                      ("--executor", a.executor), ("--address", a.address), ("--workers", a.workers),
+                                      ("--forward-cases", a.forward_cases), ("--skip", a.skip.strip() or None),
+                                      ("--retry-failed", a.retry_failed or None), ("--report-only", a.report_only or None),
+                                      ("--noise-on", None if a.noise_on == "force" else a.noise_on),
+                                      ("--variant", None if a.variant == "paper" else a.variant))
+                 if v is not None]
+        if given:
+            raise UsageError(f"{given[0]} does not apply to --real (a real benchmark runs its own fit and test, "
+                             f"with --data-dir, --seed and --out only); drop {given[0]}")
         return _real_benchmark(a)
     if a.data_dir is not None:
         raise UsageError("--data-dir goes with --real (a real benchmark's records); drop it or add --real silverbox")

@@ -22,7 +22,8 @@ def _progress_printer(enabled: bool):
         now = time.monotonic()
         if now - last[0] >= 2.0:
             last[0] = now
-            print(f"  [{phase}] {step}/{total}  loss {loss:.4g}  (Ctrl-C stops and keeps the best model so far)",
+            shown = f"  loss {loss:.4g}" if loss == loss else ""  # nan: a search, whose loss is not known yet
+            print(f"  [{phase}] {step}/{total}{shown}  (Ctrl-C stops and keeps the best model so far)",
                   file=sys.stderr, flush=True)
 
     return report
@@ -71,31 +72,36 @@ def fit_and_write(traj, out_dir, *, method, family="separable", sym=None, free_g
             # before the fit: a bad option must not cost a long run
             check_band_options(8 if bands == "posterior" else bands, bands_level)
         model = est.fit(traj).model_
-        say(f"charcurves: priors: {model.info['priors']['summary']}"
-            + ("; tests in result.json under 'symmetry'" if "symmetry_auto" in model.info else ""), quiet)
-        if bands == "posterior" and not model.info.get("interrupted"):
-            from ._bands import attach_posterior_bands
+        late, attached = False, False  # from here on the fit is finished: an interrupt never loses it
+        try:
+            say(f"charcurves: priors: {model.info['priors']['summary']}"
+                + ("; tests in result.json under 'symmetry'" if "symmetry_auto" in model.info else ""), quiet)
+            if bands == "posterior" and not model.info.get("interrupted"):
+                from ._bands import attach_posterior_bands
 
-            attach_posterior_bands(model, bands_level, quiet)
-        elif bands is not None and not model.info.get("interrupted"):
-            from ..fitting import fit_ensembles, resolved_estimator
-            from ..selection import attach_bands, curve_bands
+                attach_posterior_bands(model, bands_level, quiet)
+                attached = True
+            elif bands is not None and not model.info.get("interrupted"):
+                from ..fitting import fit_ensembles, resolved_estimator
+                from ..selection import attach_bands, curve_bands
 
-            say(f"uncertainty bands: {bands} {bands_kind} refits ...", quiet)
-            try:
+                say(f"uncertainty bands: {bands} {bands_kind} refits ...", quiet)
                 ens = fit_ensembles(resolved_estimator(est, model), [traj], bands, kind=bands_kind, points=[model])[0]
-            except KeyboardInterrupt:  # the main fit is finished: write it, with the bands marked skipped
+                attach_bands(model, curve_bands(ens, level=bands_level))
+                attached = True
+        except KeyboardInterrupt:  # write the finished fit, with the bands (if asked) marked skipped
+            if bands is not None and not attached and not model.info.get("interrupted"):
                 model.info["interrupted"] = True
                 model.info["bands"] = "skipped: interrupted"
             else:
-                attach_bands(model, curve_bands(ens, level=bands_level))
+                late = True
         elapsed = time.perf_counter() - t0
         with signals_deferred() as late_interrupt:
             make_out_dir(out_dir)
             write_results(model, out_dir, method=model.method, family=family, free_gain=free_gain, truth=truth,
                           figure=figure, quiet=quiet, source=source, elapsed=elapsed, warnings=list(warnings),
                           record=traj, report=report)
-    model.info["interrupted_while_writing"] = late_interrupt[0]
+    model.info["interrupted_while_writing"] = late or late_interrupt[0]
     return model
 
 
@@ -276,8 +282,13 @@ def cmd_fit(a) -> int:
 
     paths = [a.csv] if isinstance(a.csv, str) else list(a.csv)
     outputs = [os.path.join(a.out, name) for name in FIT_OUTPUTS + (FOLDER_LOCK_NAME,)]
+    seen: dict[str, str] = {}
     for path in paths:
         refuse_inputs_among_outputs({"record": path}, outputs)
+        key = os.path.realpath(path)
+        if key in seen:  # the same samples twice would count as two independent records
+            raise UsageError(f"the record {path!r} is given twice (also as {seen[key]!r}); give each record once")
+        seen[key] = path
     if getattr(a, "measured", None):
         if len(paths) > 1:
             raise UsageError("--measured (hidden states) takes one record; fit one CSV file")

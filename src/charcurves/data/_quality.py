@@ -18,10 +18,12 @@ GAP_FACTOR = 10.0
 NOISE_LAG1 = 0.3
 
 
-#: A state whose median lies more than this many standard deviations from 0 is warned about: the
-#: gauge (f2(0) = 0) then lies outside the data and the curves must extrapolate to it (issue 50:
-#: the Duffing record at 30 dB shifted by 10 fits nn-cc at 787 times its noise floor, unshifted 0.88).
-OFFSET_WARN = 5.0
+#: A state whose median lies more than this many standard deviations from 0 is warned about, for
+#: precision: its motion then keeps fewer than 12 of float64's 16 digits and fewer than 3 of the 7
+#: of the single-precision SR search. A record resting far from 0 (a level sensor) is otherwise no
+#: defect: a gauge anchored at 0 outside the data moves no residual; what a one-sided range does
+#: break, a parity prior imposed on the curve, is warned about at the fit (fitting's priors).
+OFFSET_WARN = 1e4
 #: ... and refused beyond this many: float64 then keeps fewer than 10 of its 16 digits for the motion,
 #: and differences (derivatives) lose more.
 OFFSET_REFUSE = 1e6
@@ -46,11 +48,15 @@ def check_offset(name: str, values: np.ndarray) -> None:
 
 
 def offset_warnings(name: str, values: np.ndarray) -> list[str]:
+    """A state offset by more than :data:`OFFSET_WARN` standard deviations (the precision its motion
+    keeps); [] otherwise: a level sensor resting at 120 with a motion of 1 (170 sd) is fitted without one."""
     ratio, centre, spread = _offset_ratio(values)
     if ratio > OFFSET_WARN:
-        return [f"{name} is centred at {centre:.6g}, {ratio:.3g} standard deviations from 0: the curves of {name} are "
-                f"anchored at {name} = 0, outside the data, and must extrapolate to it, which degrades the fit; "
-                f"subtract the offset ({name} - {centre:.6g}) unless {name} = 0 is the physical origin"]
+        digits = np.log10(ratio)
+        return [f"{name} is centred at {centre:.6g}, {ratio:.3g} standard deviations from 0: its motion keeps about "
+                f"{max(16 - digits, 0):.0f} of float64's 16 digits (the single-precision SR search about "
+                f"{max(7 - digits, 0):.0f} of 7), and derivatives lose more; subtract the offset "
+                f"({name} - {centre:.6g}) and fit again"]
     return []
 
 

@@ -97,6 +97,9 @@ def silverbox(data_dir=None) -> BenchmarkData:
     folder = data_folder(data_dir, "silverbox")
     if folder is not None:
         path = os.path.join(folder, "SNLS80mV.csv")
+        if os.path.exists(path) and not os.path.isfile(path):  # a FIFO or device: never read (it may block)
+            raise ConfigError(f"{path} is not a regular file (a folder, named pipe or device); save the benchmark's "
+                              "SNLS80mV.csv there as a file")
         if not os.path.isfile(path):
             raise ConfigError(f"no Silverbox record at {path}; give the folder that holds silverbox/SNLS80mV.csv "
                               "(--data-dir or CHARCURVES_DATA_DIR), the CSV of the benchmark's SilverboxFiles.zip")

@@ -20,6 +20,7 @@ from ._methods import METHODS, check_method_options, method_curve, parse_basis_o
 from ..model import FittedModel
 from ..train import TrainingPreset, get_preset, torch_threads
 from ._pipeline import run_pipeline
+from ._offsets import name_offset_in_warnings
 from ._priors import name_prior_in_warnings, priors_record
 from ._symmetry import fit_many_auto
 
@@ -222,6 +223,7 @@ class CharacteristicCurves(Params):
         for m in models:
             m.info["priors"] = priors_record(self, m)
             name_prior_in_warnings(m)
+            name_offset_in_warnings(m)  # a misfit on a range far from 0 says so
         return models
 
     # ------------------------------------------------------------------ resolution (used by the pipeline)

@@ -17,7 +17,7 @@ from ..templates import ESTIMATED_STICK_TOL, EquationTemplate, sticking_mask
 from ..train import TrainingPreset, fit_gradient, fit_linear
 from ._harmonics import harmonic_test
 from ._sticking import sticking_masks
-from ._symbolic_fit import fit_symbolic
+from ._symbolic_fit import fit_symbolic, unfitted_symbolic
 
 __all__ = ["fit_records", "dry_friction_test", "JUMP_F_THRESHOLD", "fitter_kind", "sticking_masks"]
 
@@ -209,11 +209,8 @@ def fit_records(records, template: EquationTemplate, reps: dict, preset: Trainin
     """Fit every record with the fitter the representations call for (module docstring)."""
     kind = fitter_kind(reps)
     if kind == "symbolic":
-        sr_keys = ("outer_iterations", "inner_generations", "tol")
-        return [fit_symbolic(rec, template, reps, method=method, mask=m,
-                             options={k: v for k, v in options.items() if k in sr_keys}, sr_options=sr_options,
-                             random_state=int(s))
-                for rec, s, m in zip(records, seeds, masks)]
+        return _fit_symbolic_records(records, template, reps, seeds, method=method, masks=masks, options=options,
+                                     sr_options=sr_options, progress=progress)
     if kind == "linear":
         constant = bool(options.get("constant", True))
         return [fit_linear(rec, template, reps, method=method, mask=m, constant=constant)
@@ -229,4 +226,26 @@ def fit_records(records, template: EquationTemplate, reps: dict, preset: Trainin
                               device=device, threads=threads, progress=progress)
         for i, m in zip(idx, models):
             out[i] = m
+    return out
+
+
+def _fit_symbolic_records(records, template, reps, seeds, *, method, masks, options, sr_options, progress=None) -> list:
+    """One symbolic fit per record, in turn. Ctrl-C or SIGTERM stops at once: the record being fitted
+    keeps what its searches found (or, when none returned, gets no curves), and the records after it
+    are not searched (no curves, ``stopped_by="not fitted: interrupted"``); interrupted before any
+    record was fitted, the KeyboardInterrupt goes on (there is nothing to keep)."""
+    sr_keys = ("outer_iterations", "inner_generations", "tol")
+    opts = {k: v for k, v in options.items() if k in sr_keys}
+    out: list = []
+    for rec, s, m in zip(records, seeds, masks):
+        if out and out[-1].info.get("interrupted"):
+            out.append(unfitted_symbolic(rec, template, method=method, mask=m))
+            continue
+        try:
+            out.append(fit_symbolic(rec, template, reps, method=method, mask=m, options=opts, sr_options=sr_options,
+                                    random_state=int(s), progress=progress))
+        except KeyboardInterrupt:
+            if not out:
+                raise
+            out.append(unfitted_symbolic(rec, template, method=method, mask=m))
     return out

@@ -291,7 +291,8 @@ def _post_sr(est, models, prepared, seeds, stop):
     for m, s, tr in zip(models, seeds, prepared):
         if not stop:
             try:
-                d = distill_model(m, sr_options=dict(est.sr_options or {}), random_state=int(s), traj=tr)
+                d = distill_model(m, sr_options=dict(est.sr_options or {}), random_state=int(s), traj=tr,
+                                  progress=est.progress)
                 if "output_error" in d.info:  # the curves' refinement; the closed forms get their own
                     d.info["output_error_before_post_sr"] = d.info.pop("output_error")
                 done.append(d)
@@ -308,7 +309,9 @@ def _objective_stage(models, prepared, raw, use_oe, objective, preset, progress,
     for m, p, r, wanted in zip(models, prepared, raw, use_oe):
         if wanted and not stop:
             try:
-                out.append(objective.refine(m, p, r, preset=preset, progress=progress))
+                named = None if progress is None else \
+                    (lambda phase, *rest: progress(f"output error {phase}", *rest))  # noqa: B023 (called here only)
+                out.append(objective.refine(m, p, r, preset=preset, progress=named))
                 stop = stop or bool(out[-1].info.get("interrupted"))
                 continue
             except KeyboardInterrupt:  # keep the finished fit, without output error, and say so

@@ -89,7 +89,8 @@ def _guard_data_loss(model, curves: dict, fronts: dict, traj) -> None:
             curves[name] = closed(name, best, f"front member of least data loss (knee {chosen})")
 
 
-def distill_model(model, *, sr_options: dict | None = None, random_state: int = 0, n: int = 1000, traj=None):
+def distill_model(model, *, sr_options: dict | None = None, random_state: int = 0, n: int = 1000, traj=None,
+                  progress=None):
     """Post-SR of every curve of a fitted model.
 
     Parameters
@@ -128,6 +129,7 @@ def distill_model(model, *, sr_options: dict | None = None, random_state: int = 
     """
     t0 = time.perf_counter()
     engine = post_sr_engine(sr_options)
+    engine.progress = progress  # a long search reports that it runs (the CLI prints every 2 s)
     ops = operators_option(sr_options)
     curves, fronts = {}, {}
     for i, (name, c) in enumerate(model.curves.items()):

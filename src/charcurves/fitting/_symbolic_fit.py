@@ -37,7 +37,8 @@ import numpy as np
 
 from .._errors import ConfigError
 from ..curves import SymbolicFittedCurve
-from ..symbolic import POLY_OPERATORS, TANH_OPERATORS, decompose, eval_expression, make_engine, split_terms
+from ..symbolic import (POLY_OPERATORS, TANH_OPERATORS, SearchInterrupted, decompose, eval_expression, make_engine,
+                        split_terms)
 from ..templates import EquationTemplate
 from ..model import finish_model
 from ._sticking import sticking_masks
@@ -160,7 +161,7 @@ def _build(template, record, D, mask, parts_z, constant, gain, method, info, met
 
 
 def fit_symbolic(record, template: EquationTemplate, reps: dict, *, method: str, mask: np.ndarray,
-                 options: dict | None = None, sr_options: dict | None = None, random_state: int = 0):
+                 options: dict | None = None, sr_options: dict | None = None, random_state: int = 0, progress=None):
     """SR (every curve ``Symbolic(joint=True)``) or SR-CC (``Symbolic()``) on a prepared record.
 
     Parameters
@@ -175,6 +176,9 @@ def fit_symbolic(record, template: EquationTemplate, reps: dict, *, method: str,
         Engine settings (:func:`charcurves.symbolic.make_engine`); ``operators="auto"``: + - *,
         plus tanh (for velocity curves, SR-CC; for the whole search, SR) when the record has
         sticking phases, as in the paper.
+    progress : callable, optional
+        ``progress(phase, step, total, loss)``, called while a search runs (every 0.1 s, ``loss``
+        nan); the CLI prints it every 2 s.
 
     Returns
     -------
@@ -210,12 +214,12 @@ def fit_symbolic(record, template: EquationTemplate, reps: dict, *, method: str,
     D = template.design(record)
     _check_template(template, D, "symbolic regression (sr, sr-cc)")
     if joint.pop():
-        return _fit_sr(template, record, D, mask, method, dict(options or {}), sr_options, random_state, t0)
+        return _fit_sr(template, record, D, mask, method, dict(options or {}), sr_options, random_state, t0, progress)
     return _fit_sr_cc(template, record, D, mask, method, dict(options or {}), sr_options, random_state, t0,
-                      refit=refit.pop())
+                      refit=refit.pop(), progress=progress)
 
 
-def _fit_sr(template, record, D, mask, method, options, sr_options, random_state, t0):
+def _fit_sr(template, record, D, mask, method, options, sr_options, random_state, t0, progress=None):
     import sympy as sp
 
     from ..symbolic import operators_option
@@ -223,6 +227,7 @@ def _fit_sr(template, record, D, mask, method, options, sr_options, random_state
     if options:
         raise ConfigError(f"unknown option(s) {sorted(options)} for {method}; it takes none")
     engine = make_engine(sr_options)
+    engine.progress = progress
     g0 = _initial_gain(template, D, mask)
     y = g0 * D["F"] - D["y"]
     order = list(template.curve_names)
@@ -231,7 +236,15 @@ def _fit_sr(template, record, D, mask, method, options, sr_options, random_state
     ops = operators_option(sr_options)
     if ops is None:
         ops = TANH_OPERATORS if bool((~mask).any()) else POLY_OPERATORS
-    res = engine.fit(X[mask], y[mask], names, random_state=int(random_state), operators=ops)
+    interrupted = None
+    try:
+        res = engine.fit(X[mask], y[mask], names, random_state=int(random_state), operators=ops)
+    except SearchInterrupted as exc:  # Ctrl-C or SIGTERM: the pick of the front reached so far
+        if exc.result is None:
+            raise
+        res = exc.result
+        interrupted = (f"interrupted (Ctrl-C or SIGTERM) in the search after {res.info.get('generations_run', 0)} "
+                       f"of {engine.generations * engine.populations} generations")
     symbols = {n: sp.Symbol(v) for n, v in zip(order, names)}
     parts, constant, mixed = decompose(res.expression, symbols)
     decomposable = not mixed
@@ -251,11 +264,14 @@ def _fit_sr(template, record, D, mask, method, options, sr_options, random_state
         "operators": list(ops),
         "sr": res.summary(),
     }
+    if interrupted:
+        info.update(interrupted=True, stopped_by=interrupted)  # the pipeline skips what follows
     meta = {n: {"source": "sr", "expression": str(parts_z[n])} for n in template.curve_names}
     return _build(template, record, D, mask, parts_z, constant, gain, method, info, meta, g0=g0, t0=t0)
 
 
-def _fit_sr_cc(template, record, D, mask, method, options, sr_options, random_state, t0, *, refit: bool = False):
+def _fit_sr_cc(template, record, D, mask, method, options, sr_options, random_state, t0, *, refit: bool = False,
+               progress=None):
     import sympy as sp
 
     from ..symbolic import operators_option
@@ -272,6 +288,7 @@ def _fit_sr_cc(template, record, D, mask, method, options, sr_options, random_st
     if inner < 1:
         raise ConfigError(f"inner_generations must be >= 1, got {inner}")
     engine = make_engine({**(sr_options or {}), "generations": inner})
+    engine.progress = progress
     g0 = _initial_gain(template, D, mask)
     y = (g0 * D["F"] - D["y"])[mask]
     args = {n: np.asarray(v, dtype=float)[mask] for n, v in D["args"].items()}
@@ -303,7 +320,10 @@ def _fit_sr_cc(template, record, D, mask, method, options, sr_options, random_st
             history.append({n: str(exprs[n]) for n in template.curve_names})
             if it > 1 and change <= tol:
                 break
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
+        found = getattr(exc, "result", None)  # SearchInterrupted: the search's pick of its front so far
+        if found is not None and (new := eval_expression(found.expression, [z], args[name][:, None])) is not None:
+            vals[name], exprs[name], results[name] = new, found.expression, found
         if not results:
             raise  # no search returned yet: there is no model to keep
         interrupted = f"interrupted (Ctrl-C or SIGTERM) in outer iteration {it} of {n_outer}"
@@ -336,6 +356,18 @@ def _fit_sr_cc(template, record, D, mask, method, options, sr_options, random_st
         info.update(interrupted=True, stopped_by=interrupted)  # the pipeline skips what follows
     meta = {n: {"source": "sr-cc", "expression": str(parts_z[n])} for n in template.curve_names}
     return _build(template, record, D, mask, parts_z, constant, gain, method, info, meta, g0=g0, t0=t0)
+
+
+def unfitted_symbolic(record, template: EquationTemplate, *, method: str, mask: np.ndarray):
+    """The model of a record that an interrupt kept from being searched: every curve 0, the known gain,
+    marked ``interrupted`` with ``stopped_by="not fitted: interrupted"`` (like the trainer's
+    untrained chunks)."""
+    D = template.design(record)
+    info = {"interrupted": True, "stopped_by": "not fitted: interrupted", "expression": "", "decomposable": True,
+            "mixed_terms": [], "constant": 0.0, "decomposable_scripts": True, "sr": {}}
+    meta = {n: {"source": method, "expression": "0"} for n in template.curve_names}
+    return _build(template, record, D, mask, {}, 0.0, float(template.gain), method, info, meta,
+                  g0=float(template.gain), t0=time.perf_counter())
 
 
 def _functional(joint: bool):

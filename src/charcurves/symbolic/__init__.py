@@ -38,6 +38,7 @@ from ._engine import (
     searches_running,
 )
 from ._make import make_engine
+from ._stoppable import SearchInterrupted
 from ._pysr import PySREngine
 from ._expressions import eval_expression, expression_complexity, parse_infix, polish_constants, split_terms
 from ._selection import SELECTION_CRITERIA, FrontEntry, SRResult, select_model
@@ -57,6 +58,7 @@ __all__ = [
     "OperonEngine",
     "PySREngine",
     "SRResult",
+    "SearchInterrupted",
     "SymbolicRegressionEngine",
     "decompose",
     "distill_curve",

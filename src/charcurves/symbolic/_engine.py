@@ -78,6 +78,7 @@ import numpy as np
 from .._errors import ConfigError
 from ._expressions import (desaturate, eval_expression, expression_complexity, parse_infix, polish_constants,
                            reevaluate, tidy)
+from ._stoppable import SearchInterrupted, stoppable_regressor
 from ._selection import (AUTO_SELECTION, SELECTION_CRITERIA, Candidate, FrontEntry, SRResult, candidates_from, pareto,
                          select_model)
 
@@ -134,6 +135,8 @@ def check_operators(ops) -> tuple[str, ...]:
         ops = tuple(str(o).strip().lower() for o in ops)
     except TypeError:
         raise ConfigError(f"operators must be 'auto' or a list of names like ('add', 'sub', 'mul', 'tanh'), got {ops!r}") from None
+    if not ops:
+        raise ConfigError(f"no operators given; give auto or names from {', '.join(OPERATORS)} (e.g. add,sub,mul,tanh)")
     bad = [o for o in ops if o not in OPERATORS]
     if bad:
         raise ConfigError(f"unknown operator(s) {bad}; give auto or names from {', '.join(OPERATORS)} "
@@ -182,6 +185,8 @@ class SymbolicRegressionEngine(abc.ABC):
     """
 
     name = "abstract"
+    #: ``progress(phase, step, total, loss)`` called while a search runs (every 0.1 s; loss nan), or None
+    progress = None
 
     def __init__(self, *, generations: int = DEFAULT_SR_OPTIONS["generations"],
                  populations: int = DEFAULT_SR_OPTIONS["populations"],
@@ -235,6 +240,12 @@ class SymbolicRegressionEngine(abc.ABC):
         Returns
         -------
         SRResult
+
+        Raises
+        ------
+        SearchInterrupted
+            (a KeyboardInterrupt) when Ctrl-C or SIGTERM stopped the search; its ``result`` is
+            the pick of the front reached so far.
         """
         X = np.asarray(X, dtype=float)
         if X.ndim == 1:
@@ -249,6 +260,8 @@ class SymbolicRegressionEngine(abc.ABC):
         hit = _MEMO.get(key)
         if hit is None:
             hit = self._fit(X, y, names, int(random_state), ops, context)
+            if hit.info.get("interrupted"):  # the pick of the front so far, never remembered
+                raise SearchInterrupted(hit)
             _MEMO[key] = hit
             while len(_MEMO) > MEMO_SIZE:
                 _MEMO.pop(next(iter(_MEMO)))
@@ -306,7 +319,7 @@ def _memo_key(engine, X: np.ndarray, y: np.ndarray, names, random_state: int, op
     digest = hashlib.blake2b(np.ascontiguousarray(X).tobytes(), digest_size=16)
     digest.update(np.ascontiguousarray(y).tobytes())
     digest.update(repr(X.shape).encode())
-    settings = (type(engine).__name__,) + tuple(sorted((k, repr(v)) for k, v in vars(engine).items()))
+    settings = (type(engine).__name__,) + tuple(sorted((k, repr(v)) for k, v in vars(engine).items() if k != "progress"))
     return (settings, digest.hexdigest(), tuple(names), random_state, tuple(ops), context)
 
 
@@ -356,9 +369,14 @@ class OperonEngine(SymbolicRegressionEngine):
         self.optimizer_iterations = int(optimizer_iterations)
         self.n_threads = int(n_threads)
 
+    def _ticker(self, k: int):
+        progress = self.progress
+        if progress is None:
+            return None
+        return lambda: progress("sr search", k + 1, self.populations, float("nan"))
+
     def _search(self, X, y, symbols, operators, random_state):
         try:
-            from pyoperon.sklearn import SymbolicRegressor
             import pyoperon as op
         except ImportError:  # pragma: no cover - pyoperon is a dependency
             raise ConfigError("the Operon engine needs the 'pyoperon' package: pip install pyoperon") from None
@@ -367,7 +385,7 @@ class OperonEngine(SymbolicRegressionEngine):
         allowed = ",".join([_OPERON_SYMBOLS[o] for o in operators] + ["constant", "variable"])
         exprs, gens, evals = [], 0, 0
         for k in range(self.populations):
-            reg = SymbolicRegressor(
+            reg = stoppable_regressor(
                 allowed_symbols=allowed, objectives=["mse", "length"], max_length=self.max_size,
                 max_depth=max(6, self.max_size), population_size=self.population_size,
                 pool_size=self.population_size, generations=self.generations,
@@ -378,7 +396,7 @@ class OperonEngine(SymbolicRegressionEngine):
             )
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                _interruptible(reg.fit, X, y)
+                stopped = _interruptible(reg.fit, X, y, stop=reg.stop, tick=self._ticker(k))
             gens += int(reg.stats_.get("generations", 0))
             evals += int(reg.stats_.get("evaluation_count", 0))
             names = {h: f"X{i + 1}" for i, h in enumerate(reg.variables_)}
@@ -389,6 +407,8 @@ class OperonEngine(SymbolicRegressionEngine):
                     exprs.append(parse_infix(text, symbols))
                 except (ValueError, SyntaxError, TypeError):
                     continue
+            if stopped:  # Ctrl-C or SIGTERM: the front so far, no further population
+                return exprs, {"generations_run": gens, "evaluations": evals, "interrupted": True}
         return exprs, {"generations_run": gens, "evaluations": evals}
 
 
@@ -411,15 +431,20 @@ def searches_running() -> int:
         return _RUNNING[0]
 
 
-def _interruptible(fn, *args):
+def _interruptible(fn, *args, stop=None, tick=None) -> bool:
     """``fn(*args)`` in a helper thread while the main thread waits in short steps, so that Ctrl-C and
-    SIGTERM stop a search that runs in C++ (Operon releases the GIL, but Python only runs signal
-    handlers between bytecodes of the main thread) within 0.1 s: KeyboardInterrupt is raised here, and
-    the abandoned search ends on its own in the background (its result is dropped). Elsewhere than
-    in the main thread (sweep workers) ``fn`` runs directly."""
+    SIGTERM reach a search that runs in C++ (Operon releases the GIL, but Python only runs signal
+    handlers between bytecodes of the main thread) within 0.1 s. With ``stop`` the first interrupt
+    calls it (the search ends after the offspring being bred, with its front so far) and the wait
+    goes on: True is returned once ``fn`` returned. Without ``stop``, or on a further interrupt while
+    the search stops, KeyboardInterrupt is raised here and the abandoned search ends on its own in
+    the background (its result is dropped). Elsewhere than in the main thread (sweep workers) ``fn``
+    runs directly. ``tick()`` is called after every 0.1 s of waiting."""
     if threading.current_thread() is not threading.main_thread():
-        return fn(*args)
+        fn(*args)
+        return False
     box: dict = {}
+    done = threading.Event()  # not Thread.is_alive: a join that Ctrl-C interrupts can leave it False too early
 
     def run():
         try:
@@ -429,17 +454,26 @@ def _interruptible(fn, *args):
         finally:
             with _RUNNING_LOCK:
                 _RUNNING[0] -= 1
+            done.set()
 
     with _RUNNING_LOCK:
         _RUNNING[0] += 1
 
     worker = threading.Thread(target=run, name="charcurves-sr-search", daemon=True)
     worker.start()
-    while worker.is_alive():
-        worker.join(0.1)
+    stopped = False
+    while not done.is_set():
+        try:
+            if not done.wait(0.1) and tick is not None:
+                tick()
+        except KeyboardInterrupt:
+            if stop is None or stopped:
+                raise
+            stop()
+            stopped = True
     if "error" in box:
         raise box["error"]
-    return box["value"]
+    return stopped
 
 
 def operators_option(sr_options: dict | None):

@@ -54,6 +54,8 @@ def parse_measured(measured) -> dict[str, str]:
             state, sep, column = (s.strip() for s in part.partition("="))
             if not sep or not state or not column:
                 raise ConfigError(f"--measured {measured!r}: write state=column pairs, e.g. --measured x2=x")
+            if state in out:  # the last would win silently
+                raise ConfigError(f"--measured {measured!r} names the state {state} twice; give each state one column")
             out[state] = column
         measured = out
     if not isinstance(measured, Mapping) or not measured:
