@@ -1,0 +1,418 @@
+"""The Laplace posterior of a gradient-trained fit (NN-CC, NN-CC+sym, any mix of curves trained by
+:func:`._gradient_fit.fit_gradient`; equation error).
+
+At the optimum ``theta`` of the loss ``sum_t r_t^2 + theta^T Lambda theta`` (the residuals weighted
+by ``1/sqrt(N)``, ``Lambda`` the evidence's per-layer decays on the decayed weights), the
+posterior of the weights is Gaussian around ``theta`` with precision ``H = J^T J + Lambda`` (the
+Gauss-Newton matrix of the objective that ran, the soft symmetry penalty's rows included in
+``J^T J``). Its covariance is
+
+* ``"gauss"``: ``s^2 H^-1`` (MacKay's), ``s^2 = RSS_w / (N - gamma)`` with ``gamma = tr(H^-1 J^T J)``
+  the evidence's effective number of parameters;
+* ``"hac"`` (the default): ``H^-1 (S + s^2 (H - J^T J)) H^-1``, where ``S`` is the Newey-West sum
+  of the lagged products of the scores ``j_t r_t`` (Bartlett weights, Andrews' bandwidth, as in
+  :mod:`._posterior_linear`) times ``N / (N - gamma)``. On white residuals ``S = s^2 J^T J`` and the
+  two agree; residuals correlated by a smoothing differentiator widen it.
+
+Every reported quantity (a curve's value at ``z`` after the template's gauge, the gain, the free
+constants and scalars) is a function of the weights; its variance is propagated through that
+function's exact Jacobian (the curves' own ``evaluate_jacobian``), which includes the gain's division of the
+curves (force side) and the gauge's shifts (a curve anchored at 0 has a zero-width band there).
+
+A fit that averages several starts (``combine="mean"``) is reported as the mixture of its members'
+posteriors: the variance of each quantity is the mean of its members' variances plus the spread of
+the members' own values (the optimisation's share of the uncertainty). Directions of ``H`` the
+record does not determine give infinite variance to what loads on them, and a warning names the
+curve or scalar; a precision whose (Jacobi-scaled) condition number exceeds
+:data:`ILL_CONDITIONED` gives a warning naming the weights of its weakest direction.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+
+from ._posterior_linear import COVARIANCE_KINDS, bartlett_sum, hac_bandwidth
+
+__all__ = ["NetworkPosterior", "network_posteriors"]
+
+#: Jacobi-scaled precision whose condition number exceeds this: a warning naming its weakest direction.
+ILL_CONDITIONED = 1e12
+#: eigenvalues of the scaled precision below this times the largest are directions the record does not determine
+UNIDENTIFIED = 1e-14
+
+
+class NetworkPosterior:
+    """The Laplace posterior of a gradient-trained fit; built by :func:`network_posteriors` and kept
+    as ``model.posterior`` (see :meth:`charcurves.FittedModel.curve_band`).
+
+    It has the interface of :class:`LinearPosterior` that :mod:`charcurves.model` uses:
+    ``curve_sd``, ``scalar_stats``, ``check_against``, ``warnings``, ``with_kind`` and the attributes
+    ``kind``, ``bandwidth``, ``noise_variance`` (in the equation's units, the members' mean),
+    ``condition_number`` (the worst member's) and ``effective_parameters``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import charcurves as cc
+    >>> from charcurves.systems import get_system
+    >>> record = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=400), 20, seed=0)
+    >>> model = cc.fit(record, method="nn-cc", random_state=0)
+    >>> value, sd = model.posterior.curve_sd("f2", np.array([0.0, 1.0]))
+    >>> float(sd[0]), bool(sd[1] > 0), model.posterior.kind   # f2(0) = 0 is the gauge: no width there
+    (0.0, True, 'hac')
+    """
+
+    def __init__(self, *, ctx: dict, thetas: torch.Tensor, factors: dict, unidentified: list, owners_of: list,
+                 noise_variance: float, bandwidth: int, condition_number: float, effective_parameters: float,
+                 weak: list, kind: str = "hac"):
+        self._ctx, self._thetas, self._factors = ctx, thetas, factors
+        self._unidentified, self._owners_of, self._weak = unidentified, owners_of, weak
+        self.kind = kind
+        self.noise_variance, self.bandwidth = float(noise_variance), int(bandwidth)
+        self.condition_number, self.effective_parameters = float(condition_number), float(effective_parameters)
+        self.template = ctx["template"]
+
+    def with_kind(self, kind: str) -> NetworkPosterior:
+        """The same fit's posterior with the covariance ``kind`` (both are computed at the fit)."""
+        import copy
+
+        if kind not in COVARIANCE_KINDS:
+            from .._errors import ConfigError
+
+            raise ConfigError(f"unknown posterior covariance {kind!r}; choose one of {', '.join(COVARIANCE_KINDS)}")
+        new = copy.copy(self)
+        new.kind = kind
+        return new
+
+    # ------------------------------------------------------------------ the map theta -> reported values
+    def _report(self, Th: torch.Tensor, grids: dict) -> torch.Tensor:
+        """The reported values of the model whose members are the rows of ``Th`` ``(M, P)``: each
+        curve on its grid (after the gauge), then the scalars (:meth:`_scalar_names`), one vector."""
+        c = self._ctx
+        names = c["names"]
+        gain_col = Th[:, c["gain_index"]] if c["gain_index"] is not None else None
+        if c["force_side"] and gain_col is not None:
+            g = c["g_est"] / gain_col.mean()
+        elif gain_col is not None:
+            g = gain_col.mean()
+        else:
+            g = Th.new_tensor(float(c["gain"]))
+        factor = c["s_out"] * g if c["force_side"] else Th.new_tensor(c["s_out"])
+        scal = {}
+        for j, cname in enumerate(c["const_names"]):
+            o = c["offsets"][len(names) + j]
+            scal[cname] = Th[:, o].mean() * factor / c["sig_scale"][cname]
+        own = {n: scal.pop(f"const:{n}") for n in c["own"]}
+
+        def raw(i, z):
+            nm = names[i]
+            center, half = c["scales"][nm]
+            o = c["offsets"][i]
+            p = c["params"][nm]
+            u = (torch.as_tensor(np.asarray(z, dtype=float), dtype=Th.dtype) - center) / half
+            if c["neural"][nm]:
+                u = torch.as_tensor(np.asarray(z, dtype=float), dtype=Th.dtype) / half
+            f = p.evaluate(Th[:, o:o + p.n_params], u.reshape(1, -1).expand(Th.shape[0], -1)).mean(dim=0) * factor
+            if nm in own and not c["neural"][nm]:
+                f = f + own[nm]
+            return f
+
+        offs = {e: scal.pop(f"b{e + 1}") for e in c["offset_keys"] if c["E"] > 1}
+        if c["bias_index"] is not None:
+            offs[0] = Th[:, c["bias_index"]].mean() * factor
+        names_g, off_keys, new_keys, S, O = c["gauge"]
+        inputs = torch.stack([raw(i, np.array([0.0]))[0] for i in range(len(names))]
+                             + [offs.get(e, Th.new_zeros(())) for e in off_keys]) if (len(names) + len(off_keys)) else Th.new_zeros(0)
+        shifts = torch.as_tensor(S, dtype=Th.dtype) @ inputs
+        new_off = torch.as_tensor(O, dtype=Th.dtype) @ inputs
+        out = [raw(names.index(nm), z) + shifts[names.index(nm)] for nm, z in grids.items()]
+        vals = {"gain": g, "offset": Th.new_zeros(())}
+        for r, e in enumerate(new_keys):
+            vals["offset" if e == 0 else f"b{e + 1}"] = new_off[r]
+        vals.update(scal)
+        out += [vals[k].reshape(1) for k in self._scalar_names()]
+        return torch.cat(out) if out else Th.new_zeros(0)
+
+    def _scalar_names(self) -> list[str]:
+        c = self._ctx
+        names = []
+        if self.template.free_gain:
+            names.append("gain")
+        names_g, off_keys, new_keys, S, O = c["gauge"]
+        if 0 in new_keys and np.any(O[new_keys.index(0)] != 0):
+            names.append("offset")
+        names += [f"b{e + 1}" for e in new_keys if e > 0]
+        names += list(self.template.scalar_names)
+        return list(dict.fromkeys(names))
+
+    def _report_jacobian(self, th: torch.Tensor, grids: dict) -> tuple[np.ndarray, np.ndarray]:
+        """The values of :meth:`_report` for the single member ``th`` ``(P,)`` and their exact
+        Jacobian ``(out, P)``: the curves' own Jacobians (``evaluate_jacobian``), the gain's
+        division of every curve and constant (force side) and the gauge's linear shifts."""
+        c = self._ctx
+        names = c["names"]
+        t = th.detach().double().numpy()
+        P = t.size
+        gi = c["gain_index"]
+        dfac = np.zeros(P)
+        dg = np.zeros(P)
+        if c["force_side"]:
+            g = c["g_est"] / t[gi]
+            factor = c["s_out"] * g
+            dfac[gi] = -factor / t[gi]
+            dg[gi] = -g / t[gi]
+        else:
+            g = t[gi] if gi is not None else float(c["gain"])
+            if gi is not None:
+                dg[gi] = 1.0
+            factor = c["s_out"]
+
+        def lin(o, sig):  # a one-parameter constant times the factor: value and gradient
+            d = dfac * t[o] / sig
+            d[o] += factor / sig
+            return t[o] * factor / sig, d
+
+        scal = {cname: lin(c["offsets"][len(names) + j], c["sig_scale"][cname])
+                for j, cname in enumerate(c["const_names"])}
+        own = {n: scal.pop(f"const:{n}") for n in c["own"]}
+
+        def raw(i, z):
+            nm = names[i]
+            center, half = c["scales"][nm]
+            o, p = c["offsets"][i], c["params"][nm]
+            z = np.asarray(z, dtype=float).reshape(-1)
+            u = torch.as_tensor(z / half if c["neural"][nm] else (z - center) / half, dtype=th.dtype).reshape(1, -1)
+            with torch.no_grad():
+                f, Jf = p.evaluate_jacobian(th[o:o + p.n_params].reshape(1, -1), u)
+            f, Jf = f[0].double().numpy(), Jf[0].double().numpy()
+            J = np.outer(f, dfac)
+            J[:, o:o + p.n_params] += factor * Jf
+            v = factor * f
+            if nm in own and not c["neural"][nm]:
+                v, J = v + own[nm][0], J + own[nm][1][None, :]
+            return v, J
+
+        offs = {e: scal.pop(f"b{e + 1}") for e in c["offset_keys"] if c["E"] > 1}
+        if c["bias_index"] is not None:
+            offs[0] = lin(c["bias_index"], 1.0)
+        _, off_keys, new_keys, S, O = c["gauge"]
+        zero = (0.0, np.zeros(P))
+        at0 = [raw(i, [0.0]) for i in range(len(names))]
+        ins = np.array([v[0] for v, _ in at0] + [offs.get(e, zero)[0] for e in off_keys])
+        dins = np.array([J[0] for _, J in at0] + [offs.get(e, zero)[1] for e in off_keys]).reshape(-1, P)
+        vals, jacs = [], []
+        for nm, z in grids.items():
+            i = names.index(nm)
+            v, J = raw(i, z)
+            vals.append(v + S[i] @ ins)
+            jacs.append(J + (S[i] @ dins)[None, :])
+        sv = {"gain": (g, dg), "offset": zero}
+        for r, e in enumerate(new_keys):
+            sv["offset" if e == 0 else f"b{e + 1}"] = (float(O[r] @ ins), O[r] @ dins)
+        sv.update(scal)
+        for k in self._scalar_names():
+            vals.append(np.array([sv[k][0]]))
+            jacs.append(np.asarray(sv[k][1]).reshape(1, P))
+        if not vals:
+            return np.zeros(0), np.zeros((0, P))
+        return np.concatenate(vals), np.concatenate(jacs)
+
+    def _moments(self, grids: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(value, variance, covariance of the scalars)`` of every reported quantity (the mixture of
+        the members' Gaussians; see the module docstring)."""
+        Th = self._thetas
+        with torch.no_grad():
+            center = self._report(Th, grids).numpy()
+        ns = len(self._scalar_names())
+        var = np.zeros(center.size)
+        cov_s = np.zeros((ns, ns))
+        singles = []
+        for m in range(Th.shape[0]):
+            with np.errstate(all="ignore"):
+                one, J = self._report_jacobian(Th[m], grids)
+            singles.append(one)
+            JR = J @ self._factors[self.kind][m]
+            v = np.sum(JR**2, axis=1)
+            U = self._unidentified[m]
+            if len(U):
+                load = np.abs(J @ U.T).max(axis=1)
+                scale = np.abs(J).max(axis=1) * np.abs(U).max() + 1e-300
+                v = np.where(load > 1e-6 * scale, np.inf, v)
+            var += v
+            if ns:
+                cov_s += JR[-ns:] @ JR[-ns:].T
+        M = Th.shape[0]
+        one = np.stack(singles)
+        var = var / M + one.var(axis=0)
+        if ns:
+            d = one[:, -ns:] - one[:, -ns:].mean(axis=0)
+            cov_s = cov_s / M + d.T @ d / M
+        return center, var, cov_s
+
+    # ------------------------------------------------------------------ what users ask for
+    def curve_sd(self, name: str, z) -> tuple[np.ndarray, np.ndarray]:
+        """``(value, sd)`` of curve ``name`` at ``z`` (the gauge-fixed curve the model reports)."""
+        z = np.asarray(z, dtype=float)
+        center, var, _ = self._moments({name: z.reshape(-1)})
+        n = z.size
+        return center[:n].reshape(z.shape), np.sqrt(np.clip(var[:n], 0.0, None)).reshape(z.shape)
+
+    def scalar_stats(self) -> dict[str, Any]:
+        """Mean, sd and correlations of the gain, the free constants and the scalars (those the fit learned)."""
+        names = self._scalar_names()
+        if not names:
+            return {"names": [], "mean": {}, "sd": {}, "correlation": []}
+        center, var, cov = self._moments({})
+        sd = np.sqrt(np.clip(var, 0.0, None))
+        with np.errstate(all="ignore"):
+            corr = cov / np.outer(np.sqrt(np.diag(cov)), np.sqrt(np.diag(cov)))
+        corr = np.where(np.isfinite(corr), corr, np.nan)
+        return {"names": names, "mean": dict(zip(names, center.tolist())), "sd": dict(zip(names, sd.tolist())),
+                "correlation": corr.tolist()}
+
+    def check_against(self, model, *, rtol: float = 1e-7) -> bool:
+        """Whether the model still has the curves this posterior describes (an output-error refinement,
+        a post-SR distillation or a loaded model replace them)."""
+        grids = {}
+        for nm, curve in model.curves.items():
+            lo, hi = curve.domain
+            grids[nm] = np.linspace(lo, hi, 5)
+        with torch.no_grad():
+            mine = self._report(self._thetas, grids).numpy()
+        o = 0
+        for nm, curve in model.curves.items():
+            ref = np.asarray(curve(grids[nm]), dtype=float)
+            if not np.allclose(mine[o:o + 5], ref, rtol=rtol, atol=rtol * (np.max(np.abs(ref)) + 1e-300)):
+                return False
+            o += 5
+        return True
+
+    def warnings(self) -> list[str]:
+        """One line per problem: a direction of the weights the record does not or barely determines."""
+        out = []
+        for what, owners in self._weak:
+            out.append(f"uncertainty: the record {what} a combination of the weights of {owners} (condition number "
+                       f"{self.condition_number:.3g}); what depends on it has wide or infinite bands: excite the "
+                       "curve over a wider range, simplify it or fix a gauge")
+        return out
+
+
+def _gauge_map(template, names: list, off_keys: list, pinned: dict):
+    """The template's gauge (:meth:`normalise`) as the linear map it is (see ``LinearPosterior._gauge_map``)."""
+    columns = []
+    for j in range(len(names) + len(off_keys)):
+        raw0 = {nm: float(j == i) for i, nm in enumerate(names)}
+        o = {e: float(j == len(names) + i) for i, e in enumerate(off_keys)}
+        columns.append(template.normalise(raw0, pinned, o))
+    keys = sorted({e for _, new_off in columns for e in new_off} | ({0} if 0 in off_keys else set()))
+    S = np.array([[c[0][nm] for c in columns] for nm in names], dtype=float).reshape(len(names), len(columns))
+    O = np.array([[c[1].get(e, 0.0) for c in columns] for e in keys], dtype=float).reshape(len(keys), len(columns))
+    return names, off_keys, keys, S, O
+
+
+def _owner_names(problem, names: list, const_names: list) -> list[str]:
+    """What each weight belongs to: a curve's name, "the gain", "the free constant", a scalar's name."""
+    out = ["?"] * problem.n_params
+    for i, o in enumerate(problem.offsets):
+        n = problem.terms[i].curve.n_params
+        label = names[i] if i < len(names) else const_names[i - len(names)]
+        out[o:o + n] = [label.removeprefix("const:")] * n
+    if problem.gain_index is not None:
+        out[problem.gain_index] = "the gain"
+    if problem.bias_index is not None:
+        out[problem.bias_index] = "the free constant"
+    return out
+
+
+def _member_factors(problem, theta: torch.Tensor, n: int, E: int):
+    """Per row of ``theta`` (a problem of those rows): the square-root factors of both covariances
+    (weight space), the unidentified directions, the noise variance (weighted units), the HAC
+    bandwidth, the Jacobi-scaled condition number, gamma and the weakest direction."""
+    JtJ_all, _, _, data_cost = problem.normal_equations(theta)
+    r, J = problem._data_rows(theta)
+    K, P = theta.shape
+    prior = torch.zeros(K, P, P, dtype=theta.dtype)
+    if problem.decay_index is not None:
+        w2, _ = problem.decay_terms(theta)
+        idx = problem.decay_index
+        prior[:, idx, idx] = w2
+    out = []
+    for m in range(K):
+        Jm, rm = J[m].numpy(), r[m].numpy()
+        Jd = Jm.T @ Jm
+        Pm = prior[m].numpy() + (JtJ_all[m].numpy() - Jd)  # the decay and the soft symmetry penalty
+        H = Jd + Pm
+        d = np.sqrt(np.clip(np.diag(H), 0.0, None))
+        d = np.where(d > 0, d, 1.0)
+        Hs = H / np.outer(d, d)
+        e, Q = np.linalg.eigh((Hs + Hs.T) / 2)
+        emax = max(float(e[-1]), 1e-300)
+        ok = e > UNIDENTIFIED * emax
+        cond = float(emax / e[0]) if e[0] > 0 else float("inf")
+        Vf = (Q[:, ok] / np.sqrt(e[ok])) / d[:, None]  # H^-1 = Vf Vf^T on the identified subspace
+        Hinv = Vf @ Vf.T
+        N_used = float(problem.n_used[m])
+        gamma = float(np.sum(Hinv * Jd))
+        dof = max(N_used - gamma, 1.0)
+        s2 = float(data_cost[m]) / dof
+        score = (Jm * rm[:, None]).reshape(E, n, P).sum(axis=0)
+        res = rm.reshape(E, n).sum(axis=0)
+        L = hac_bandwidth(res)
+        Sh = bartlett_sum(score, L) * (N_used / dof) + s2 * Pm
+        w, C = np.linalg.eigh((Sh + Sh.T) / 2)
+        C = C * np.sqrt(np.clip(w, 0.0, None))
+        factors = {"gauss": np.sqrt(s2) * Vf, "hac": Hinv @ C}
+        unid = (Q[:, ~ok] / d[:, None]).T
+        weak = None
+        if (~ok).any():
+            weak = ("does not determine", unid[0])
+        elif cond > ILL_CONDITIONED:
+            weak = ("barely determines", Q[:, 0] / d)
+        out.append((factors, unid, s2, L, cond, gamma, weak))
+    return out
+
+
+def network_posteriors(problem, theta: torch.Tensor, decay: torch.Tensor, ctx: dict, members: list,
+                       models: list) -> None:
+    """Attach a :class:`NetworkPosterior` to each of ``models`` (record ``k``: the rows
+    ``members[k]`` of ``theta``, the fitted weights of the batched ``problem``; ``decay`` ``(KR, G)``
+    the evidence's final decays; ``ctx`` the fit's scalings, one entry per record where they differ).
+    A posterior that cannot be formed (its model does not match it) is left out with a warning."""
+    import time
+
+    for k, (rows, model) in enumerate(zip(members, models)):
+        t0 = time.perf_counter()
+        idx = torch.as_tensor(np.asarray(rows, dtype=np.int64))
+        sub = problem.subset(idx)
+        if sub.decay_index is not None:
+            sub.set_weight_decay(decay[idx].to(sub.y.dtype))
+        th = theta[idx].to(sub.y.dtype)
+        with torch.no_grad():
+            parts = _member_factors(sub, th, ctx["n"], ctx["E"])
+        c = dict(ctx, **ctx["per_record"][k])
+        owners = _owner_names(problem, c["names"], c["const_names"])
+        weak = []
+        for *_, w in parts:
+            if w is not None:
+                v = np.abs(w[1])
+                top = [owners[i] for i in np.argsort(-v)[:3] if v[i] > 0.1 * v.max()]
+                weak.append((w[0], ", ".join(dict.fromkeys(top))))
+        weak = list(dict.fromkeys(weak))
+        scale2 = float(c["s_out"]) ** 2 * ctx["N_rows"]  # weighted residuals -> the equation's units
+        post = NetworkPosterior(
+            ctx=c, thetas=th.double(), factors={kk: [p[0][kk] for p in parts] for kk in COVARIANCE_KINDS},
+            unidentified=[p[1] for p in parts], owners_of=owners,
+            noise_variance=float(np.mean([p[2] for p in parts])) * scale2, bandwidth=max(p[3] for p in parts),
+            condition_number=max(p[4] for p in parts), effective_parameters=float(np.mean([p[5] for p in parts])),
+            weak=weak)
+        if not post.check_against(model, rtol=1e-6):
+            model.info.setdefault("warnings", []).append(
+                "uncertainty: no posterior for this fit (its curves could not be reproduced from the weights)")
+            continue
+        model.posterior = post
+        model.info["posterior_seconds"] = time.perf_counter() - t0
+        if post.warnings():
+            model.info.setdefault("warnings", []).extend(post.warnings())
