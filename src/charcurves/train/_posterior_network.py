@@ -75,6 +75,9 @@ class NetworkPosterior:
         self.condition_number, self.effective_parameters = float(condition_number), float(effective_parameters)
         self.template = ctx["template"]
 
+    #: ``result.json`` ``uncertainty`` ``method``
+    label = "laplace (gauss-newton, evidence decays)"
+
     def with_kind(self, kind: str) -> NetworkPosterior:
         """The same fit's posterior with the covariance ``kind`` (both are computed at the fit)."""
         import copy
