@@ -90,16 +90,16 @@ def test_the_band_of_a_network_is_its_jacobian_through_the_posterior(nn):
     post = nn.posterior
     grids = {"f1": np.linspace(-1.0, 1.0, 5), "f2": np.array([-1.5, 0.0, 0.7])}
     th = post._thetas[0].clone()
-    value, J = post._report_jacobian(th, grids)
+    value, J = post.mapping.report_jacobian(th, grids)
     h = 1e-6
     Jn = np.zeros_like(J)
     for p in range(th.numel()):
         e = th.clone()
         e[p] += h
-        up = post._report(e.unsqueeze(0), grids).numpy()
+        up = post.mapping.report(e.unsqueeze(0), grids).numpy()
         e[p] -= 2 * h
-        Jn[:, p] = (up - post._report(e.unsqueeze(0), grids).numpy()) / (2 * h)
-    assert np.allclose(value, post._report(th.unsqueeze(0), grids).numpy(), rtol=1e-12, atol=1e-14)
+        Jn[:, p] = (up - post.mapping.report(e.unsqueeze(0), grids).numpy()) / (2 * h)
+    assert np.allclose(value, post.mapping.report(th.unsqueeze(0), grids).numpy(), rtol=1e-12, atol=1e-14)
     assert np.allclose(J, Jn, rtol=1e-5, atol=1e-6 * np.abs(J).max())
     z = np.linspace(*nn.curves["f1"].domain, 9)
     v, sd = post.curve_sd("f1", z)

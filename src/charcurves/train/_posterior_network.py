@@ -36,7 +36,7 @@ import torch
 
 from ._posterior_linear import COVARIANCE_KINDS, bartlett_sum, hac_bandwidth
 
-__all__ = ["NetworkPosterior", "network_posteriors"]
+__all__ = ["NetworkPosterior", "EquationErrorMap", "network_posteriors", "laplace_posterior", "attach_posterior"]
 
 #: Jacobi-scaled precision whose condition number exceeds this: a warning naming its weakest direction.
 ILL_CONDITIONED = 1e12
@@ -65,15 +65,17 @@ class NetworkPosterior:
     (0.0, True, 'hac')
     """
 
-    def __init__(self, *, ctx: dict, thetas: torch.Tensor, factors: dict, unidentified: list, owners_of: list,
+    def __init__(self, *, mapping, thetas: torch.Tensor, factors: dict, unidentified: list,
                  noise_variance: float, bandwidth: int, condition_number: float, effective_parameters: float,
-                 weak: list, kind: str = "hac"):
-        self._ctx, self._thetas, self._factors = ctx, thetas, factors
-        self._unidentified, self._owners_of, self._weak = unidentified, owners_of, weak
+                 weak: list, kind: str = "hac", label: str | None = None):
+        self.mapping, self._thetas, self._factors = mapping, thetas, factors
+        self._unidentified, self._weak = unidentified, weak
         self.kind = kind
         self.noise_variance, self.bandwidth = float(noise_variance), int(bandwidth)
         self.condition_number, self.effective_parameters = float(condition_number), float(effective_parameters)
-        self.template = ctx["template"]
+        self.template = mapping.template
+        if label is not None:
+            self.label = label
 
     #: ``result.json`` ``uncertainty`` ``method``
     label = "laplace (gauss-newton, evidence decays)"
@@ -90,11 +92,100 @@ class NetworkPosterior:
         new.kind = kind
         return new
 
-    # ------------------------------------------------------------------ the map theta -> reported values
-    def _report(self, Th: torch.Tensor, grids: dict) -> torch.Tensor:
+    def _moments(self, grids: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(value, variance, covariance of the scalars)`` of every reported quantity (the mixture of
+        the members' Gaussians; see the module docstring)."""
+        Th = self._thetas
+        with torch.no_grad():
+            center = self.mapping.report(Th, grids).numpy()
+        ns = len(self.mapping.scalar_names())
+        var = np.zeros(center.size)
+        cov_s = np.zeros((ns, ns))
+        singles = []
+        for m in range(Th.shape[0]):
+            with np.errstate(all="ignore"):
+                one, J = self.mapping.report_jacobian(Th[m], grids)
+            singles.append(one)
+            JR = J @ self._factors[self.kind][m]
+            v = np.sum(JR**2, axis=1)
+            U = self._unidentified[m]
+            if len(U):
+                load = np.abs(J @ U.T).max(axis=1)
+                scale = np.abs(J).max(axis=1) * np.abs(U).max() + 1e-300
+                v = np.where(load > 1e-6 * scale, np.inf, v)
+            var += v
+            if ns:
+                cov_s += JR[-ns:] @ JR[-ns:].T
+        M = Th.shape[0]
+        one = np.stack(singles)
+        var = var / M + one.var(axis=0)
+        if ns:
+            d = one[:, -ns:] - one[:, -ns:].mean(axis=0)
+            cov_s = cov_s / M + d.T @ d / M
+        return center, var, cov_s
+
+    # ------------------------------------------------------------------ what users ask for
+    def curve_sd(self, name: str, z) -> tuple[np.ndarray, np.ndarray]:
+        """``(value, sd)`` of curve ``name`` at ``z`` (the gauge-fixed curve the model reports)."""
+        z = np.asarray(z, dtype=float)
+        center, var, _ = self._moments({name: z.reshape(-1)})
+        n = z.size
+        return center[:n].reshape(z.shape), np.sqrt(np.clip(var[:n], 0.0, None)).reshape(z.shape)
+
+    def scalar_stats(self) -> dict[str, Any]:
+        """Mean, sd and correlations of the gain, the free constants and the scalars (those the fit learned)."""
+        names = self.mapping.scalar_names()
+        if not names:
+            return {"names": [], "mean": {}, "sd": {}, "correlation": []}
+        center, var, cov = self._moments({})
+        sd = np.sqrt(np.clip(var, 0.0, None))
+        with np.errstate(all="ignore"):
+            corr = cov / np.outer(np.sqrt(np.diag(cov)), np.sqrt(np.diag(cov)))
+        corr = np.where(np.isfinite(corr), corr, np.nan)
+        return {"names": names, "mean": dict(zip(names, center.tolist())), "sd": dict(zip(names, sd.tolist())),
+                "correlation": corr.tolist()}
+
+    def check_against(self, model, *, rtol: float = 1e-7) -> bool:
+        """Whether the model still has the curves this posterior describes (an output-error refinement,
+        a post-SR distillation or a loaded model replace them)."""
+        grids = {}
+        for nm, curve in model.curves.items():
+            lo, hi = curve.domain
+            grids[nm] = np.linspace(lo, hi, 5)
+        with torch.no_grad():
+            mine = self.mapping.report(self._thetas, grids).numpy()
+        o = 0
+        for nm, curve in model.curves.items():
+            ref = np.asarray(curve(grids[nm]), dtype=float)
+            if not np.allclose(mine[o:o + 5], ref, rtol=rtol, atol=rtol * (np.max(np.abs(ref)) + 1e-300)):
+                return False
+            o += 5
+        return True
+
+    def warnings(self) -> list[str]:
+        """One line per problem: a direction of the weights the record does not or barely determines."""
+        out = []
+        for what, owners in self._weak:
+            out.append(f"uncertainty: the record {what} a combination of the weights of {owners} (condition number "
+                       f"{self.condition_number:.3g}); what depends on it has wide or infinite bands: excite the "
+                       "curve over a wider range, simplify it or fix a gauge")
+        return out
+
+
+class EquationErrorMap:
+    """The map from one gradient-trained equation-error fit's weights (the rows of its batched
+    problem) to what its model reports: each curve (``factor * f((z - c) / h)``, the factor the
+    output scale times the gain on the force side), its gauge shift, the gain, free constants and
+    scalars (as :func:`._gradient_fit.fit_gradient` builds the model)."""
+
+    def __init__(self, ctx: dict):
+        self.ctx = ctx
+        self.template = ctx["template"]
+
+    def report(self, Th: torch.Tensor, grids: dict) -> torch.Tensor:
         """The reported values of the model whose members are the rows of ``Th`` ``(M, P)``: each
-        curve on its grid (after the gauge), then the scalars (:meth:`_scalar_names`), one vector."""
-        c = self._ctx
+        curve on its grid (after the gauge), then the scalars (:meth:`scalar_names`), one vector."""
+        c = self.ctx
         names = c["names"]
         gain_col = Th[:, c["gain_index"]] if c["gain_index"] is not None else None
         if c["force_side"] and gain_col is not None:
@@ -136,11 +227,11 @@ class NetworkPosterior:
         for r, e in enumerate(new_keys):
             vals["offset" if e == 0 else f"b{e + 1}"] = new_off[r]
         vals.update(scal)
-        out += [vals[k].reshape(1) for k in self._scalar_names()]
+        out += [vals[k].reshape(1) for k in self.scalar_names()]
         return torch.cat(out) if out else Th.new_zeros(0)
 
-    def _scalar_names(self) -> list[str]:
-        c = self._ctx
+    def scalar_names(self) -> list[str]:
+        c = self.ctx
         names = []
         if self.template.free_gain:
             names.append("gain")
@@ -151,11 +242,11 @@ class NetworkPosterior:
         names += list(self.template.scalar_names)
         return list(dict.fromkeys(names))
 
-    def _report_jacobian(self, th: torch.Tensor, grids: dict) -> tuple[np.ndarray, np.ndarray]:
-        """The values of :meth:`_report` for the single member ``th`` ``(P,)`` and their exact
+    def report_jacobian(self, th: torch.Tensor, grids: dict) -> tuple[np.ndarray, np.ndarray]:
+        """The values of :meth:`report` for the single member ``th`` ``(P,)`` and their exact
         Jacobian ``(out, P)``: the curves' own Jacobians (``evaluate_jacobian``), the gain's
         division of every curve and constant (force side) and the gauge's linear shifts."""
-        c = self._ctx
+        c = self.ctx
         names = c["names"]
         t = th.detach().double().numpy()
         P = t.size
@@ -216,91 +307,13 @@ class NetworkPosterior:
         for r, e in enumerate(new_keys):
             sv["offset" if e == 0 else f"b{e + 1}"] = (float(O[r] @ ins), O[r] @ dins)
         sv.update(scal)
-        for k in self._scalar_names():
+        for k in self.scalar_names():
             vals.append(np.array([sv[k][0]]))
             jacs.append(np.asarray(sv[k][1]).reshape(1, P))
         if not vals:
             return np.zeros(0), np.zeros((0, P))
         return np.concatenate(vals), np.concatenate(jacs)
 
-    def _moments(self, grids: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(value, variance, covariance of the scalars)`` of every reported quantity (the mixture of
-        the members' Gaussians; see the module docstring)."""
-        Th = self._thetas
-        with torch.no_grad():
-            center = self._report(Th, grids).numpy()
-        ns = len(self._scalar_names())
-        var = np.zeros(center.size)
-        cov_s = np.zeros((ns, ns))
-        singles = []
-        for m in range(Th.shape[0]):
-            with np.errstate(all="ignore"):
-                one, J = self._report_jacobian(Th[m], grids)
-            singles.append(one)
-            JR = J @ self._factors[self.kind][m]
-            v = np.sum(JR**2, axis=1)
-            U = self._unidentified[m]
-            if len(U):
-                load = np.abs(J @ U.T).max(axis=1)
-                scale = np.abs(J).max(axis=1) * np.abs(U).max() + 1e-300
-                v = np.where(load > 1e-6 * scale, np.inf, v)
-            var += v
-            if ns:
-                cov_s += JR[-ns:] @ JR[-ns:].T
-        M = Th.shape[0]
-        one = np.stack(singles)
-        var = var / M + one.var(axis=0)
-        if ns:
-            d = one[:, -ns:] - one[:, -ns:].mean(axis=0)
-            cov_s = cov_s / M + d.T @ d / M
-        return center, var, cov_s
-
-    # ------------------------------------------------------------------ what users ask for
-    def curve_sd(self, name: str, z) -> tuple[np.ndarray, np.ndarray]:
-        """``(value, sd)`` of curve ``name`` at ``z`` (the gauge-fixed curve the model reports)."""
-        z = np.asarray(z, dtype=float)
-        center, var, _ = self._moments({name: z.reshape(-1)})
-        n = z.size
-        return center[:n].reshape(z.shape), np.sqrt(np.clip(var[:n], 0.0, None)).reshape(z.shape)
-
-    def scalar_stats(self) -> dict[str, Any]:
-        """Mean, sd and correlations of the gain, the free constants and the scalars (those the fit learned)."""
-        names = self._scalar_names()
-        if not names:
-            return {"names": [], "mean": {}, "sd": {}, "correlation": []}
-        center, var, cov = self._moments({})
-        sd = np.sqrt(np.clip(var, 0.0, None))
-        with np.errstate(all="ignore"):
-            corr = cov / np.outer(np.sqrt(np.diag(cov)), np.sqrt(np.diag(cov)))
-        corr = np.where(np.isfinite(corr), corr, np.nan)
-        return {"names": names, "mean": dict(zip(names, center.tolist())), "sd": dict(zip(names, sd.tolist())),
-                "correlation": corr.tolist()}
-
-    def check_against(self, model, *, rtol: float = 1e-7) -> bool:
-        """Whether the model still has the curves this posterior describes (an output-error refinement,
-        a post-SR distillation or a loaded model replace them)."""
-        grids = {}
-        for nm, curve in model.curves.items():
-            lo, hi = curve.domain
-            grids[nm] = np.linspace(lo, hi, 5)
-        with torch.no_grad():
-            mine = self._report(self._thetas, grids).numpy()
-        o = 0
-        for nm, curve in model.curves.items():
-            ref = np.asarray(curve(grids[nm]), dtype=float)
-            if not np.allclose(mine[o:o + 5], ref, rtol=rtol, atol=rtol * (np.max(np.abs(ref)) + 1e-300)):
-                return False
-            o += 5
-        return True
-
-    def warnings(self) -> list[str]:
-        """One line per problem: a direction of the weights the record does not or barely determines."""
-        out = []
-        for what, owners in self._weak:
-            out.append(f"uncertainty: the record {what} a combination of the weights of {owners} (condition number "
-                       f"{self.condition_number:.3g}); what depends on it has wide or infinite bands: excite the "
-                       "curve over a wider range, simplify it or fix a gauge")
-        return out
 
 
 def _gauge_map(template, names: list, off_keys: list, pinned: dict):
@@ -330,23 +343,31 @@ def _owner_names(problem, names: list, const_names: list) -> list[str]:
     return out
 
 
-def _member_factors(problem, theta: torch.Tensor, n: int, E: int):
+def _member_factors(problem, theta: torch.Tensor, instants):
     """Per row of ``theta`` (a problem of those rows): the square-root factors of both covariances
     (weight space), the unidentified directions, the noise variance (weighted units), the HAC
-    bandwidth, the Jacobi-scaled condition number, gamma and the weakest direction."""
+    bandwidth, the Jacobi-scaled condition number, gamma and the weakest direction. ``instants``
+    maps the data rows ``(rows, ...)`` to one row per instant of the record (summed), in time order.
+    Frozen parameters (``problem.frozen``) are known: they carry no variance."""
     JtJ_all, _, _, data_cost = problem.normal_equations(theta)
-    r, J = problem._data_rows(theta)
+    if hasattr(problem, "_data_rows"):
+        r, J = problem._data_rows(theta)
+    else:
+        r, J = problem.residuals_jacobian(theta)
+        r, J = r[:, :problem.n_data], J[:, :problem.n_data]
     K, P = theta.shape
     prior = torch.zeros(K, P, P, dtype=theta.dtype)
     if problem.decay_index is not None:
         w2, _ = problem.decay_terms(theta)
         idx = problem.decay_index
         prior[:, idx, idx] = w2
+    free = np.ones(P, dtype=bool) if problem.frozen is None else ~problem.frozen.cpu().numpy()
     out = []
     for m in range(K):
-        Jm, rm = J[m].numpy(), r[m].numpy()
+        Jm, rm = J[m].double().numpy()[:, free], r[m].double().numpy()
         Jd = Jm.T @ Jm
-        Pm = prior[m].numpy() + (JtJ_all[m].numpy() - Jd)  # the decay and the soft symmetry penalty
+        # the decay, the soft symmetry penalty and continuity rows: the prior's share of H
+        Pm = (prior[m].double().numpy() + JtJ_all[m].double().numpy())[np.ix_(free, free)] - Jd
         H = Jd + Pm
         d = np.sqrt(np.clip(np.diag(H), 0.0, None))
         d = np.where(d > 0, d, 1.0)
@@ -361,21 +382,67 @@ def _member_factors(problem, theta: torch.Tensor, n: int, E: int):
         gamma = float(np.sum(Hinv * Jd))
         dof = max(N_used - gamma, 1.0)
         s2 = float(data_cost[m]) / dof
-        score = (Jm * rm[:, None]).reshape(E, n, P).sum(axis=0)
-        res = rm.reshape(E, n).sum(axis=0)
-        L = hac_bandwidth(res)
+        score = instants(Jm * rm[:, None])
+        L = hac_bandwidth(instants(rm[:, None])[:, 0])
         Sh = bartlett_sum(score, L) * (N_used / dof) + s2 * Pm
         w, C = np.linalg.eigh((Sh + Sh.T) / 2)
         C = C * np.sqrt(np.clip(w, 0.0, None))
         factors = {"gauss": np.sqrt(s2) * Vf, "hac": Hinv @ C}
         unid = (Q[:, ~ok] / d[:, None]).T
+        embed = lambda A: _embed(A, free, P)  # noqa: E731
+        factors = {k: embed(f) for k, f in factors.items()}
+        unid = embed(unid.T).T
         weak = None
         if (~ok).any():
             weak = ("does not determine", unid[0])
         elif cond > ILL_CONDITIONED:
-            weak = ("barely determines", Q[:, 0] / d)
+            weak = ("barely determines", embed((Q[:, 0] / d)[:, None])[:, 0])
         out.append((factors, unid, s2, L, cond, gamma, weak))
     return out
+
+
+def _embed(A: np.ndarray, free: np.ndarray, P: int) -> np.ndarray:
+    """Rows of ``A`` (one per free parameter) placed among ``P`` parameters, zero for frozen ones."""
+    out = np.zeros((P, A.shape[1]))
+    out[free] = A
+    return out
+
+
+def laplace_posterior(problem, theta: torch.Tensor, mapping, owners: list, *, instants, noise_scale: float = 1.0,
+                      label: str | None = None) -> NetworkPosterior:
+    """The :class:`NetworkPosterior` of the fit whose members are the rows ``theta`` of ``problem``
+    (a problem of those rows, with their final weight decay): ``mapping`` gives the reported values
+    and their Jacobians, ``owners`` names what each parameter belongs to (for the warnings),
+    ``instants`` sums the data rows of one instant (see :func:`_member_factors`), ``noise_scale``
+    turns the weighted residuals' variance into the equation's units."""
+    with torch.no_grad():
+        parts = _member_factors(problem, theta, instants)
+    weak = []
+    for *_, w in parts:
+        if w is not None:
+            v = np.abs(w[1])
+            top = [owners[i] for i in np.argsort(-v)[:3] if v[i] > 0.1 * v.max()]
+            weak.append((w[0], ", ".join(dict.fromkeys(top))))
+    return NetworkPosterior(
+        mapping=mapping, thetas=theta.double(), factors={kk: [p[0][kk] for p in parts] for kk in COVARIANCE_KINDS},
+        unidentified=[p[1] for p in parts], noise_variance=float(np.mean([p[2] for p in parts])) * noise_scale,
+        bandwidth=max(p[3] for p in parts), condition_number=max(p[4] for p in parts),
+        effective_parameters=float(np.mean([p[5] for p in parts])), weak=list(dict.fromkeys(weak)), label=label)
+
+
+def attach_posterior(model, post: NetworkPosterior, seconds_since: float) -> None:
+    """``model.posterior = post`` where it reproduces the model's curves (else a warning and none),
+    with its seconds and warnings in ``model.info``."""
+    import time
+
+    if not post.check_against(model, rtol=1e-6):
+        model.info.setdefault("warnings", []).append(
+            "uncertainty: no posterior for this fit (its curves could not be reproduced from the weights)")
+        return
+    model.posterior = post
+    model.info["posterior_seconds"] = time.perf_counter() - seconds_since
+    if post.warnings():
+        model.info.setdefault("warnings", []).extend(post.warnings())
 
 
 def network_posteriors(problem, theta: torch.Tensor, decay: torch.Tensor, ctx: dict, members: list,
@@ -386,36 +453,16 @@ def network_posteriors(problem, theta: torch.Tensor, decay: torch.Tensor, ctx: d
     A posterior that cannot be formed (its model does not match it) is left out with a warning."""
     import time
 
+    E, n = ctx["E"], ctx["n"]
     for k, (rows, model) in enumerate(zip(members, models)):
         t0 = time.perf_counter()
         idx = torch.as_tensor(np.asarray(rows, dtype=np.int64))
         sub = problem.subset(idx)
         if sub.decay_index is not None:
             sub.set_weight_decay(decay[idx].to(sub.y.dtype))
-        th = theta[idx].to(sub.y.dtype)
-        with torch.no_grad():
-            parts = _member_factors(sub, th, ctx["n"], ctx["E"])
         c = dict(ctx, **ctx["per_record"][k])
-        owners = _owner_names(problem, c["names"], c["const_names"])
-        weak = []
-        for *_, w in parts:
-            if w is not None:
-                v = np.abs(w[1])
-                top = [owners[i] for i in np.argsort(-v)[:3] if v[i] > 0.1 * v.max()]
-                weak.append((w[0], ", ".join(dict.fromkeys(top))))
-        weak = list(dict.fromkeys(weak))
-        scale2 = float(c["s_out"]) ** 2 * ctx["N_rows"]  # weighted residuals -> the equation's units
-        post = NetworkPosterior(
-            ctx=c, thetas=th.double(), factors={kk: [p[0][kk] for p in parts] for kk in COVARIANCE_KINDS},
-            unidentified=[p[1] for p in parts], owners_of=owners,
-            noise_variance=float(np.mean([p[2] for p in parts])) * scale2, bandwidth=max(p[3] for p in parts),
-            condition_number=max(p[4] for p in parts), effective_parameters=float(np.mean([p[5] for p in parts])),
-            weak=weak)
-        if not post.check_against(model, rtol=1e-6):
-            model.info.setdefault("warnings", []).append(
-                "uncertainty: no posterior for this fit (its curves could not be reproduced from the weights)")
-            continue
-        model.posterior = post
-        model.info["posterior_seconds"] = time.perf_counter() - t0
-        if post.warnings():
-            model.info.setdefault("warnings", []).extend(post.warnings())
+        post = laplace_posterior(sub, theta[idx].to(sub.y.dtype), EquationErrorMap(c),
+                                 _owner_names(problem, c["names"], c["const_names"]),
+                                 instants=lambda a: a.reshape(E, n, -1).sum(axis=0),  # equations of one instant
+                                 noise_scale=float(c["s_out"]) ** 2 * ctx["N_rows"])
+        attach_posterior(model, post, t0)
