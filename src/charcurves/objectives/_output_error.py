@@ -261,6 +261,10 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     new = finish_model(template, model.method, curves, gain, offs, new_scalars, prepared, info, None)
     if not seg_after <= seg_before * (1 + 1e-9):
         return _kept(model, report, "failed: the free run did not improve; kept the equation-error model")
+    if not log.interrupted and not restore:  # the Laplace posterior (._posterior_oe); a sharpened jump has none
+        from ._posterior_oe import output_error_posterior
+
+        output_error_posterior(new, problem, theta, members)
     y_first = rows[:, problem.n_shared:problem.n_shared + fm.n_state].mean(axis=0)
     if bounds is not None:  # each record's own first state; one free run per record (no run across a join)
         firsts = [int(np.searchsorted(starts, a)) for a, _ in bounds]

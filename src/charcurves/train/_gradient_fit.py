@@ -286,8 +286,8 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
                "per_record": [{"scales": scales[k], "s_out": scale_out[k], "g_est": g_est[k],
                                "sig_scale": sig_scale[k]} for k in range(K)]}
         gauge_offs = sorted(({0} if bias else set()) | ({e for e in offsets} if E > 1 else set()))
-        from ._posterior_network import _gauge_map
+        from ._posterior_network import gauge_map
 
-        ctx["gauge"] = _gauge_map(template, list(names), gauge_offs, pinned)
+        ctx["gauge"] = gauge_map(template, list(names), gauge_offs, pinned)
         network_posteriors(problem, theta, decay.double().cpu(), ctx, member_rows, models)
     return models

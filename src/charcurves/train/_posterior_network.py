@@ -36,7 +36,8 @@ import torch
 
 from ._posterior_linear import COVARIANCE_KINDS, bartlett_sum, hac_bandwidth
 
-__all__ = ["NetworkPosterior", "EquationErrorMap", "network_posteriors", "laplace_posterior", "attach_posterior"]
+__all__ = ["NetworkPosterior", "EquationErrorMap", "network_posteriors", "laplace_posterior", "attach_posterior",
+           "gauge_map"]
 
 #: Jacobi-scaled precision whose condition number exceeds this: a warning naming its weakest direction.
 ILL_CONDITIONED = 1e12
@@ -316,8 +317,19 @@ class EquationErrorMap:
 
 
 
-def _gauge_map(template, names: list, off_keys: list, pinned: dict):
-    """The template's gauge (:meth:`normalise`) as the linear map it is (see ``LinearPosterior._gauge_map``)."""
+def gauge_map(template, names: list, off_keys: list, pinned: dict):
+    """The template's gauge (:meth:`normalise`) as the linear map it is: ``(names, off_keys, new_keys, S, O)``
+    with the curves' shifts ``S @ inputs`` and the new offsets ``O @ inputs``, ``inputs`` the curves'
+    values at 0 and the offsets ``off_keys``.
+
+    Examples
+    --------
+    >>> from charcurves.templates import get_template
+    >>> from charcurves.train import gauge_map
+    >>> names, offs, keys, S, O = gauge_map(get_template(), ["f1", "f2"], [0], {"f1": True, "f2": False})
+    >>> S.tolist(), keys, O.tolist()  # f1 is odd: f2(0) moves to the free constant b
+    ([[0.0, 0.0, 0.0], [0.0, -1.0, 0.0]], [0], [[0.0, 1.0, 1.0]])
+    """
     columns = []
     for j in range(len(names) + len(off_keys)):
         raw0 = {nm: float(j == i) for i, nm in enumerate(names)}
