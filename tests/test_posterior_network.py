@@ -150,3 +150,57 @@ def test_cli_bands_of_an_nn_cc_fit_are_the_posterior(tmp_path, short):
     unc = result["uncertainty"]
     assert unc["method"] == "laplace (gauss-newton, evidence decays)" and unc["covariance"] == "hac"
     assert len(unc["curves"]["f2"]["sd"]) == 51 and unc["warnings"] == []
+
+
+@pytest.fixture(scope="module")
+def oe():
+    clean = get_system("duffing").simulate(t_end=20.0, n_points=500)
+    measured = cc.corrupt(clean, 40, on="state", seed=2)
+    model = cc.CharacteristicCurves.from_method(method="parametric", basis="f1=z; f2=z, z**3", free_gain=True,
+                                                objective="output-error", threads=1).fit(measured).model_
+    return model, float(np.var(measured.x - clean.x))
+
+
+def test_an_output_error_fit_has_the_posterior_of_its_shooting_problem(oe):
+    """The gain's sd against the Schur complement of the shooting problem's Gauss-Newton matrix
+    (decay and continuity rows included), formed here from its Jacobian; the noise variance
+    against the noise added; f2(0) = 0 has no width."""
+    model, noise = oe
+    post = model.posterior
+    assert model.info["objective"] == "output-error" and post is not None
+    assert post.label.startswith("laplace (gauss-newton of output error")
+    sub, th = post.mapping.problem, post._thetas
+    r, J = (a[0].numpy() for a in sub.residuals_jacobian(th))
+    nd, ns = sub.n_data, sub.n_shared
+    H = J.T @ J
+    Jd = J[:nd]
+    gamma = np.trace(np.linalg.solve(H, Jd.T @ Jd))
+    s2 = float(r[:nd] @ r[:nd]) / (nd - gamma)
+    Hss, Hsi, Hii = H[:ns, :ns], H[:ns, ns:], H[ns:, ns:]
+    schur = Hss - Hsi @ np.linalg.solve(Hii, Hsi.T)
+    g = sub.gain_index
+    stats = post.with_kind("gauss").scalar_stats()
+    assert stats["sd"]["gain"] == pytest.approx(np.sqrt(s2 * np.linalg.inv(schur)[g, g]), rel=1e-6)
+    assert post.noise_variance == pytest.approx(noise, rel=0.25)
+    assert post.curve_sd("f2", np.array([0.0]))[1][0] == 0.0
+    value, lo, hi = model.curve_band("f1", np.array([0.3]))
+    assert lo[0] < value[0] < hi[0] and uncertainty_summary(model)["covariance"] == "hac"
+
+
+def test_the_output_error_jacobian_is_exact(oe):
+    model, _ = oe
+    post = model.posterior
+    grids = {"f1": np.array([-0.8, 0.2]), "f2": np.array([-1.1, 1.4])}
+    th = post._thetas[0].clone()
+    value, J = post.mapping.report_jacobian(th, grids)
+    h = 1e-6
+    Jn = np.zeros_like(J)
+    for p in range(th.numel()):
+        e = th.clone()
+        e[p] += h
+        up = post.mapping.report(e.unsqueeze(0), grids).numpy()
+        e[p] -= 2 * h
+        Jn[:, p] = (up - post.mapping.report(e.unsqueeze(0), grids).numpy()) / (2 * h)
+    assert np.allclose(J, Jn, rtol=1e-6, atol=1e-8)
+    assert not J[:, post.mapping.problem.n_shared:].any()  # nothing reported moves with the initial states
+    assert np.allclose(value[:2], model.curves["f1"](grids["f1"]), rtol=1e-9)
