@@ -204,3 +204,17 @@ def test_the_output_error_jacobian_is_exact(oe):
     assert np.allclose(J, Jn, rtol=1e-6, atol=1e-8)
     assert not J[:, post.mapping.problem.n_shared:].any()  # nothing reported moves with the initial states
     assert np.allclose(value[:2], model.curves["f1"](grids["f1"]), rtol=1e-9)
+
+
+def test_the_simultaneous_band_widens_the_pointwise_one_as_a_sup_t_band(nn):
+    """At one point the sup-t factor is the pointwise 95 % quantile 1.96 (to the draws' error); over a
+    grid it lies between that and Bonferroni's bound."""
+    post = nn.posterior
+    one = post.simultaneous_factor({"f1": np.array([0.4])}, level=0.95)
+    assert one == pytest.approx(1.96, abs=0.08)
+    grid = {"f1": np.append(np.linspace(*nn.curves["f1"].domain, 99), 0.4)}
+    many = post.simultaneous_factor(grid, level=0.95)
+    # the same draws: the peak over a grid holding 0.4 is at least the value there; Bonferroni over
+    # 100 points, the 1 - 0.05 / 200 quantile of N(0, 1), is 3.48
+    assert one <= many < 3.48
+    assert post.simultaneous_factor(grid, level=0.95) == many  # seeded draws: the same number each time

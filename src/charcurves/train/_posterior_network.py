@@ -35,6 +35,7 @@ import numpy as np
 import torch
 
 from ._posterior_linear import COVARIANCE_KINDS, bartlett_sum, hac_bandwidth
+from ._posterior_map import EquationErrorMap
 
 __all__ = ["NetworkPosterior", "EquationErrorMap", "network_posteriors", "laplace_posterior", "attach_posterior",
            "gauge_map"]
@@ -93,16 +94,17 @@ class NetworkPosterior:
         new.kind = kind
         return new
 
-    def _moments(self, grids: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _moments(self, grids: dict, factor: bool = False):
         """``(value, variance, covariance of the scalars)`` of every reported quantity (the mixture of
-        the members' Gaussians; see the module docstring)."""
+        the members' Gaussians; see the module docstring); with ``factor``, also ``G`` whose ``G G^T``
+        is the mixture's covariance of all of them (the members' factors and spreads side by side)."""
         Th = self._thetas
         with torch.no_grad():
             center = self.mapping.report(Th, grids).numpy()
         ns = len(self.mapping.scalar_names())
         var = np.zeros(center.size)
         cov_s = np.zeros((ns, ns))
-        singles = []
+        singles, blocks = [], []
         for m in range(Th.shape[0]):
             with np.errstate(all="ignore"):
                 one, J = self.mapping.report_jacobian(Th[m], grids)
@@ -115,6 +117,8 @@ class NetworkPosterior:
                 scale = np.abs(J).max(axis=1) * np.abs(U).max() + 1e-300
                 v = np.where(load > 1e-6 * scale, np.inf, v)
             var += v
+            if factor:
+                blocks.append(JR)
             if ns:
                 cov_s += JR[-ns:] @ JR[-ns:].T
         M = Th.shape[0]
@@ -123,7 +127,40 @@ class NetworkPosterior:
         if ns:
             d = one[:, -ns:] - one[:, -ns:].mean(axis=0)
             cov_s = cov_s / M + d.T @ d / M
+        if factor:
+            G = np.concatenate([*blocks, (one - one.mean(axis=0)).T], axis=1) / np.sqrt(M)
+            return center, var, cov_s, G
         return center, var, cov_s
+
+    def simultaneous_factor(self, grids: dict, level: float = 0.95, draws: int = 4000) -> float:
+        """The multiplier ``c`` of the pointwise sd such that the band ``value +- c sd`` holds all of
+        ``grids`` (curve name -> points) at once with probability ``level`` under the posterior (the
+        sup-t band: the ``level`` quantile of ``max |delta| / sd`` over Gaussian draws, seeded);
+        ``inf`` where a point has infinite variance.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import charcurves as cc
+        >>> from charcurves.systems import get_system
+        >>> record = cc.corrupt(get_system("duffing").simulate(t_end=20.0, n_points=400), 20, seed=0)
+        >>> post = cc.fit(record, method="nn-cc", random_state=0).posterior
+        >>> c = post.simultaneous_factor({"f1": np.linspace(-1, 1, 50)})
+        >>> bool(1.96 < c < 3.5)  # wider than the pointwise 95 % band, narrower than Bonferroni's
+        True
+        """
+        center, var, _, G = self._moments({k: np.asarray(v, dtype=float).reshape(-1) for k, v in grids.items()},
+                                          factor=True)
+        n = sum(np.asarray(v).size for v in grids.values())
+        var, G = var[:n], G[:n]
+        if not np.all(np.isfinite(var)):
+            return float("inf")
+        keep = var > 0
+        sd = np.sqrt(var[keep])
+        rng = np.random.default_rng(0)
+        W = rng.standard_normal((G.shape[1], int(draws)))
+        peaks = np.max(np.abs(G[keep] @ W) / sd[:, None], axis=0)
+        return float(np.quantile(peaks, level))
 
     # ------------------------------------------------------------------ what users ask for
     def curve_sd(self, name: str, z) -> tuple[np.ndarray, np.ndarray]:
@@ -171,150 +208,6 @@ class NetworkPosterior:
                        f"{self.condition_number:.3g}); what depends on it has wide or infinite bands: excite the "
                        "curve over a wider range, simplify it or fix a gauge")
         return out
-
-
-class EquationErrorMap:
-    """The map from one gradient-trained equation-error fit's weights (the rows of its batched
-    problem) to what its model reports: each curve (``factor * f((z - c) / h)``, the factor the
-    output scale times the gain on the force side), its gauge shift, the gain, free constants and
-    scalars (as :func:`._gradient_fit.fit_gradient` builds the model)."""
-
-    def __init__(self, ctx: dict):
-        self.ctx = ctx
-        self.template = ctx["template"]
-
-    def report(self, Th: torch.Tensor, grids: dict) -> torch.Tensor:
-        """The reported values of the model whose members are the rows of ``Th`` ``(M, P)``: each
-        curve on its grid (after the gauge), then the scalars (:meth:`scalar_names`), one vector."""
-        c = self.ctx
-        names = c["names"]
-        gain_col = Th[:, c["gain_index"]] if c["gain_index"] is not None else None
-        if c["force_side"] and gain_col is not None:
-            g = c["g_est"] / gain_col.mean()
-        elif gain_col is not None:
-            g = gain_col.mean()
-        else:
-            g = Th.new_tensor(float(c["gain"]))
-        factor = c["s_out"] * g if c["force_side"] else Th.new_tensor(c["s_out"])
-        scal = {}
-        for j, cname in enumerate(c["const_names"]):
-            o = c["offsets"][len(names) + j]
-            scal[cname] = Th[:, o].mean() * factor / c["sig_scale"][cname]
-        own = {n: scal.pop(f"const:{n}") for n in c["own"]}
-
-        def raw(i, z):
-            nm = names[i]
-            center, half = c["scales"][nm]
-            o = c["offsets"][i]
-            p = c["params"][nm]
-            u = (torch.as_tensor(np.asarray(z, dtype=float), dtype=Th.dtype) - center) / half
-            if c["neural"][nm]:
-                u = torch.as_tensor(np.asarray(z, dtype=float), dtype=Th.dtype) / half
-            f = p.evaluate(Th[:, o:o + p.n_params], u.reshape(1, -1).expand(Th.shape[0], -1)).mean(dim=0) * factor
-            if nm in own and not c["neural"][nm]:
-                f = f + own[nm]
-            return f
-
-        offs = {e: scal.pop(f"b{e + 1}") for e in c["offset_keys"] if c["E"] > 1}
-        if c["bias_index"] is not None:
-            offs[0] = Th[:, c["bias_index"]].mean() * factor
-        names_g, off_keys, new_keys, S, O = c["gauge"]
-        inputs = torch.stack([raw(i, np.array([0.0]))[0] for i in range(len(names))]
-                             + [offs.get(e, Th.new_zeros(())) for e in off_keys]) if (len(names) + len(off_keys)) else Th.new_zeros(0)
-        shifts = torch.as_tensor(S, dtype=Th.dtype) @ inputs
-        new_off = torch.as_tensor(O, dtype=Th.dtype) @ inputs
-        out = [raw(names.index(nm), z) + shifts[names.index(nm)] for nm, z in grids.items()]
-        vals = {"gain": g, "offset": Th.new_zeros(())}
-        for r, e in enumerate(new_keys):
-            vals["offset" if e == 0 else f"b{e + 1}"] = new_off[r]
-        vals.update(scal)
-        out += [vals[k].reshape(1) for k in self.scalar_names()]
-        return torch.cat(out) if out else Th.new_zeros(0)
-
-    def scalar_names(self) -> list[str]:
-        c = self.ctx
-        names = []
-        if self.template.free_gain:
-            names.append("gain")
-        names_g, off_keys, new_keys, S, O = c["gauge"]
-        if 0 in new_keys and np.any(O[new_keys.index(0)] != 0):
-            names.append("offset")
-        names += [f"b{e + 1}" for e in new_keys if e > 0]
-        names += list(self.template.scalar_names)
-        return list(dict.fromkeys(names))
-
-    def report_jacobian(self, th: torch.Tensor, grids: dict) -> tuple[np.ndarray, np.ndarray]:
-        """The values of :meth:`report` for the single member ``th`` ``(P,)`` and their exact
-        Jacobian ``(out, P)``: the curves' own Jacobians (``evaluate_jacobian``), the gain's
-        division of every curve and constant (force side) and the gauge's linear shifts."""
-        c = self.ctx
-        names = c["names"]
-        t = th.detach().double().numpy()
-        P = t.size
-        gi = c["gain_index"]
-        dfac = np.zeros(P)
-        dg = np.zeros(P)
-        if c["force_side"]:
-            g = c["g_est"] / t[gi]
-            factor = c["s_out"] * g
-            dfac[gi] = -factor / t[gi]
-            dg[gi] = -g / t[gi]
-        else:
-            g = t[gi] if gi is not None else float(c["gain"])
-            if gi is not None:
-                dg[gi] = 1.0
-            factor = c["s_out"]
-
-        def lin(o, sig):  # a one-parameter constant times the factor: value and gradient
-            d = dfac * t[o] / sig
-            d[o] += factor / sig
-            return t[o] * factor / sig, d
-
-        scal = {cname: lin(c["offsets"][len(names) + j], c["sig_scale"][cname])
-                for j, cname in enumerate(c["const_names"])}
-        own = {n: scal.pop(f"const:{n}") for n in c["own"]}
-
-        def raw(i, z):
-            nm = names[i]
-            center, half = c["scales"][nm]
-            o, p = c["offsets"][i], c["params"][nm]
-            z = np.asarray(z, dtype=float).reshape(-1)
-            u = torch.as_tensor(z / half if c["neural"][nm] else (z - center) / half, dtype=th.dtype).reshape(1, -1)
-            with torch.no_grad():
-                f, Jf = p.evaluate_jacobian(th[o:o + p.n_params].reshape(1, -1), u)
-            f, Jf = f[0].double().numpy(), Jf[0].double().numpy()
-            J = np.outer(f, dfac)
-            J[:, o:o + p.n_params] += factor * Jf
-            v = factor * f
-            if nm in own and not c["neural"][nm]:
-                v, J = v + own[nm][0], J + own[nm][1][None, :]
-            return v, J
-
-        offs = {e: scal.pop(f"b{e + 1}") for e in c["offset_keys"] if c["E"] > 1}
-        if c["bias_index"] is not None:
-            offs[0] = lin(c["bias_index"], 1.0)
-        _, off_keys, new_keys, S, O = c["gauge"]
-        zero = (0.0, np.zeros(P))
-        at0 = [raw(i, [0.0]) for i in range(len(names))]
-        ins = np.array([v[0] for v, _ in at0] + [offs.get(e, zero)[0] for e in off_keys])
-        dins = np.array([J[0] for _, J in at0] + [offs.get(e, zero)[1] for e in off_keys]).reshape(-1, P)
-        vals, jacs = [], []
-        for nm, z in grids.items():
-            i = names.index(nm)
-            v, J = raw(i, z)
-            vals.append(v + S[i] @ ins)
-            jacs.append(J + (S[i] @ dins)[None, :])
-        sv = {"gain": (g, dg), "offset": zero}
-        for r, e in enumerate(new_keys):
-            sv["offset" if e == 0 else f"b{e + 1}"] = (float(O[r] @ ins), O[r] @ dins)
-        sv.update(scal)
-        for k in self.scalar_names():
-            vals.append(np.array([sv[k][0]]))
-            jacs.append(np.asarray(sv[k][1]).reshape(1, P))
-        if not vals:
-            return np.zeros(0), np.zeros((0, P))
-        return np.concatenate(vals), np.concatenate(jacs)
-
 
 
 def gauge_map(template, names: list, off_keys: list, pinned: dict):
