@@ -254,12 +254,16 @@ def _member_factors(problem, theta: torch.Tensor, instants):
     bandwidth, the Jacobi-scaled condition number, gamma and the weakest direction. ``instants``
     maps the data rows ``(rows, ...)`` to one row per instant of the record (summed), in time order.
     Frozen parameters (``problem.frozen``) are known: they carry no variance."""
-    JtJ_all, _, _, data_cost = problem.normal_equations(theta)
-    if hasattr(problem, "_data_rows"):
+    if hasattr(problem, "_data_rows"):  # equation error: the normal equations over chunks of samples
+        JtJ_all, _, _, data_cost = problem.normal_equations(theta)
         r, J = problem._data_rows(theta)
-    else:
+    else:  # one Jacobian (output error: one free run with its sensitivities)
         r, J = problem.residuals_jacobian(theta)
+        m = 0 if problem.decay_index is None else problem.decay_index.numel()
+        Jp = J[:, :J.shape[1] - m]
+        JtJ_all = Jp.transpose(1, 2) @ Jp
         r, J = r[:, :problem.n_data], J[:, :problem.n_data]
+        data_cost = r.pow(2).sum(1)
     K, P = theta.shape
     prior = torch.zeros(K, P, P, dtype=theta.dtype)
     if problem.decay_index is not None:
