@@ -142,8 +142,9 @@ def output_error_posterior(model, problem, theta: torch.Tensor, members: np.ndar
     t0 = time.perf_counter()
     template = model.template
     idx = torch.as_tensor(np.asarray(members, dtype=np.int64))
-    sub = problem.subset(idx)
-    th = theta[idx].double()
+    every = idx.numel() == problem.K and bool((idx == torch.arange(problem.K)).all())
+    sub = problem if every else problem.subset(idx)  # all rows: the free run at theta is remembered
+    th = theta if every else theta[idx]
     pinned = {nm: bool(c.pinned_at_zero) for nm, c in model.curves.items()}
     gauge = gauge_map(template, list(template.curve_names), sorted(problem.offset_index), pinned)
     mapping = OutputErrorMap(template, sub, model.curves, th, gauge)
