@@ -202,6 +202,23 @@ def bias_lines(rows) -> list[str]:
     return out
 
 
+def simultaneous_lines(rows) -> list[str]:
+    """Per setting, method and band of the network posteriors: the sup-t band's mean factor (range),
+    its grid share and share of realisations inside everywhere, beside the pointwise band's."""
+    out = []
+    for setting, method in sorted({(r["setting"], r["method"]) for r in rows}):
+        sel = [r for r in rows if r["setting"] == setting and r["method"] == method and "simultaneous" in r["hac"]]
+        for band in ("hac", "gauss") if sel else ():
+            d = [r[band]["simultaneous"] for r in sel]
+            f = [x["factor"] for x in d]
+            out.append(f"{setting} {method} {band}: sup-t factor mean {np.mean(f):.3f} [{min(f):.3f}, {max(f):.3f}], "
+                       f"grid {np.mean([x['grid'] for x in d]):.3f}, inside everywhere "
+                       f"{np.mean([x['everywhere'] for x in d]):.2f}; pointwise band: grid "
+                       f"{np.mean([r[band]['grid'] for r in sel]):.3f}, inside everywhere "
+                       f"{np.mean([r[band]['everywhere'] for r in sel]):.2f} ({len(d)} realisations)")
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--render", action="store_true",
@@ -227,7 +244,7 @@ def main(argv=None):
     with open(os.path.join(a.out, "coverage.json"), "w", encoding="utf-8") as fh:
         json.dump(rows, fh, indent=1)
     text = table(rows)
-    print("\n".join(bias_lines(rows)))
+    print("\n".join(bias_lines(rows) + simultaneous_lines(rows)))
     with open(os.path.join(a.out, "coverage.md"), "w", encoding="utf-8") as fh:
         fh.write(text)
     print(text)
