@@ -218,3 +218,20 @@ def test_the_simultaneous_band_widens_the_pointwise_one_as_a_sup_t_band(nn):
     # 100 points, the 1 - 0.05 / 200 quantile of N(0, 1), is 3.48
     assert one <= many < 3.48
     assert post.simultaneous_factor(grid, level=0.95) == many  # seeded draws: the same number each time
+
+
+@pytest.mark.slow
+def test_the_default_fit_of_a_record_of_x_only_has_the_output_error_posterior():
+    """The default (parity tests, nn-cc+sym with a learned jump, output error) on 40 dB on x: the
+    posterior of the output-error fit, with the jump's width known, and no stale warning of the
+    equation-error stage."""
+    clean = get_system("duffing").simulate(t_end=20.0, n_points=500)
+    measured = cc.corrupt(clean, 40, on="state", seed=3)
+    model = cc.fit(cc.Trajectory(t=measured.t, x=measured.x, F=measured.F), random_state=0)
+    assert model.info["objective"] == "output-error"
+    assert model.posterior.label.startswith("laplace (gauss-newton of output error")
+    assert not [w for w in model.info.get("warnings", []) if w.startswith("uncertainty:")]
+    truth = get_system("duffing").true_curves()
+    z = np.linspace(*model.curves["f2"].domain, 100)
+    value, lo, hi = model.curve_band("f2", z)
+    assert np.mean((truth["f2"](z) >= lo) & (truth["f2"](z) <= hi)) > 0.8

@@ -68,8 +68,8 @@ def curve_band(model, name: str, z, level: float = 0.95) -> tuple[np.ndarray, np
         raise ConfigError(f"unknown curve {name!r}; the model has {', '.join(model.curves)}")
     post = model_posterior(model)
     if post is None:
-        raise ConfigError(f"this {model.method} model has no posterior (it exists for fits by equation error: "
-                          "poly-cc, parametric, sindy-cc, nn-cc, nn-cc+sym); use charcurves.selection.fit_ensemble for "
+        raise ConfigError(f"this {model.method} model has no posterior (it exists for poly-cc, parametric, "
+                          "sindy-cc, nn-cc and nn-cc+sym fits, by equation or output error, until the curves change); use charcurves.selection.fit_ensemble for "
                           "bootstrap bands")
     value, sd = post.curve_sd(name, z)
     zq = NormalDist().inv_cdf(0.5 + level / 2.0)

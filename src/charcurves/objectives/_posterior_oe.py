@@ -136,9 +136,12 @@ def _owners(problem, names: list) -> list[str]:
     return out
 
 
-def output_error_posterior(model, problem, theta: torch.Tensor, members: np.ndarray) -> None:
+def output_error_posterior(model, problem, theta: torch.Tensor, members: np.ndarray, restore: dict | None = None) -> None:
     """Attach the Laplace posterior of the output-error fit to ``model`` (the refitted model; its
-    members are the rows ``members`` of ``theta``, the trained rows of the shooting ``problem``)."""
+    members are the rows ``members`` of ``theta``, the trained rows of the shooting ``problem``).
+    ``restore``: ``{column: value per row}`` of frozen columns the model holds at another value (a
+    jump's width, trained smooth and sharpened afterwards): the bands are those of the sharpened
+    curves, the precision that of the problem that ran."""
     t0 = time.perf_counter()
     template = model.template
     idx = torch.as_tensor(np.asarray(members, dtype=np.int64))
@@ -147,11 +150,15 @@ def output_error_posterior(model, problem, theta: torch.Tensor, members: np.ndar
     th = theta if every else theta[idx]
     pinned = {nm: bool(c.pinned_at_zero) for nm, c in model.curves.items()}
     gauge = gauge_map(template, list(template.curve_names), sorted(problem.offset_index), pinned)
-    mapping = OutputErrorMap(template, sub, model.curves, th, gauge)
+    shown = th.clone()
+    for col, values in (restore or {}).items():
+        shown[:, col] = torch.as_tensor(np.asarray(values, dtype=float)[np.asarray(members)], dtype=shown.dtype)
+    mapping = OutputErrorMap(template, sub, model.curves, shown, gauge)
     O = problem.O
     scale = float(problem.scales[problem.out_index[0]])
     post = laplace_posterior(sub, th, mapping, _owners(problem, list(template.curve_names)),
                              instants=lambda a: a.reshape(-1, O, a.shape[-1]).sum(axis=1),  # outputs of one instant
                              noise_scale=scale**2 * problem.n_data,
-                             label="laplace (gauss-newton of output error, initial states marginalised)")
+                             label="laplace (gauss-newton of output error, initial states marginalised)",
+                             report_theta=shown if restore else None)
     attach_posterior(model, post, t0)

@@ -318,12 +318,14 @@ def _embed(A: np.ndarray, free: np.ndarray, P: int) -> np.ndarray:
 
 
 def laplace_posterior(problem, theta: torch.Tensor, mapping, owners: list, *, instants, noise_scale: float = 1.0,
-                      label: str | None = None) -> NetworkPosterior:
+                      label: str | None = None, report_theta: torch.Tensor | None = None) -> NetworkPosterior:
     """The :class:`NetworkPosterior` of the fit whose members are the rows ``theta`` of ``problem``
     (a problem of those rows, with their final weight decay): ``mapping`` gives the reported values
     and their Jacobians, ``owners`` names what each parameter belongs to (for the warnings),
     ``instants`` sums the data rows of one instant (see :func:`_member_factors`), ``noise_scale``
-    turns the weighted residuals' variance into the equation's units."""
+    turns the weighted residuals' variance into the equation's units; ``report_theta``: the rows the
+    model reports where they differ from the trained ones in frozen columns only (a jump sharpened
+    after training)."""
     with torch.no_grad():
         parts = _member_factors(problem, theta, instants)
     weak = []
@@ -333,7 +335,7 @@ def laplace_posterior(problem, theta: torch.Tensor, mapping, owners: list, *, in
             top = [owners[i] for i in np.argsort(-v)[:3] if v[i] > 0.1 * v.max()]
             weak.append((w[0], ", ".join(dict.fromkeys(top))))
     return NetworkPosterior(
-        mapping=mapping, thetas=theta.double(), factors={kk: [p[0][kk] for p in parts] for kk in COVARIANCE_KINDS},
+        mapping=mapping, thetas=(theta if report_theta is None else report_theta).double(), factors={kk: [p[0][kk] for p in parts] for kk in COVARIANCE_KINDS},
         unidentified=[p[1] for p in parts], noise_variance=float(np.mean([p[2] for p in parts])) * noise_scale,
         bandwidth=max(p[3] for p in parts), condition_number=max(p[4] for p in parts),
         effective_parameters=float(np.mean([p[5] for p in parts])), weak=list(dict.fromkeys(weak)), label=label)
@@ -370,6 +372,11 @@ def network_posteriors(problem, theta: torch.Tensor, decay: torch.Tensor, ctx: d
         if sub.decay_index is not None:
             sub.set_weight_decay(decay[idx].to(sub.y.dtype))
         c = dict(ctx, **ctx["per_record"][k])
+        widths = [o + t.curve.slices()["jump_log_eps"].start for t, o in zip(sub.terms, sub.offsets)
+                  if getattr(t.curve, "jump", False) and hasattr(t.curve, "slices")]
+        if widths:  # a jump's width is a shape the fit chose (sharpened where unresolved): taken as known
+            sub.frozen = torch.zeros(sub.n_params, dtype=torch.bool)
+            sub.frozen[widths] = True
         post = laplace_posterior(sub, theta[idx].to(sub.y.dtype), EquationErrorMap(c),
                                  _owner_names(problem, c["names"], c["const_names"]),
                                  instants=lambda a: a.reshape(E, n, -1).sum(axis=0),  # equations of one instant
