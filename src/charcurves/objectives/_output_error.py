@@ -262,7 +262,10 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     if not seg_after <= seg_before * (1 + 1e-9):
         return _kept(model, report, "failed: the free run did not improve; kept the equation-error model")
     # the Laplace posterior (._posterior_oe); the equation-error fit's own warnings about its posterior go
-    new.info["warnings"] = [w for w in new.info.get("warnings", []) if not w.startswith("uncertainty:")]
+    if "warnings" in new.info:
+        new.info["warnings"] = [w for w in new.info["warnings"] if not w.startswith("uncertainty:")]
+        if not new.info["warnings"]:
+            del new.info["warnings"]
     if not log.interrupted:
         from ._posterior_oe import output_error_posterior
 
