@@ -17,5 +17,5 @@ def attach_posterior_bands(model, level: float, quiet: bool) -> None:
         attach_bands(model, bands)
         return
     model.info.setdefault("warnings", []).append(
-        f"bands: this {model.method} fit has no posterior (today only least-squares fits by equation error have one: "
-        "poly-cc, parametric, sindy-cc); use --bands N for N bootstrap refits")
+        f"bands: this {model.method} fit has no posterior (today poly-cc, parametric, sindy-cc, nn-cc and "
+        "nn-cc+sym fits have one, by equation or output error, until post-SR changes the curves); use --bands N for N bootstrap refits")

@@ -158,7 +158,7 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                                          "estimated)"))
     f.add_argument("--bands", type=_bands_value, nargs="?", const="posterior", default=None, metavar="posterior|N",
                    help=ranged("bands", "uncertainty bands of the curves (result.json, curves.png): the fit's posterior "
-                                        "(--bands or --bands posterior; least-squares fits by equation error) or an "
+                                        "(--bands or --bands posterior; fits by equation error) or an "
                                         "ensemble of N bootstrap refits (--bands N)"))
     f.add_argument("--bands-kind", choices=["bootstrap", "seeds"], default=None,
                    help="ensemble of --bands: wild residual bootstrap of the forcing (default) or training seeds")

@@ -3,9 +3,10 @@ deviations and correlations of the gain, free constants and scalars, in the same
 bootstrap bands of :mod:`charcurves.selection` (``model.bands``) and in ``result.json``
 ``uncertainty``.
 
-A posterior exists where the fit that produced the model computed one (today: the least-squares
-fits of Poly-CC, parametric bases and any LinearCurve, and the sparse SINDy fits on the terms they
-kept; equation error; see :mod:`._posterior_linear`). A model whose curves were replaced afterwards (output-error refinement,
+A posterior exists where the fit that produced the model computed one (today, by equation error: the
+least-squares fits of Poly-CC, parametric bases and any LinearCurve, the sparse SINDy fits on the
+terms they kept, see ``train._posterior_linear``; and the gradient-trained fits, NN-CC and
+NN-CC+sym, by the Laplace approximation, see ``train._posterior_network``). A model whose curves were replaced afterwards (output-error refinement,
 post-SR, a model loaded from disk) has none, and asking for a band says so.
 """
 
@@ -67,9 +68,9 @@ def curve_band(model, name: str, z, level: float = 0.95) -> tuple[np.ndarray, np
         raise ConfigError(f"unknown curve {name!r}; the model has {', '.join(model.curves)}")
     post = model_posterior(model)
     if post is None:
-        raise ConfigError(f"this {model.method} model has no posterior (it exists for least-squares fits by "
-                          "equation error: poly-cc, parametric, sindy-cc); use charcurves.selection.fit_ensemble for bootstrap "
-                          "bands")
+        raise ConfigError(f"this {model.method} model has no posterior (it exists for poly-cc, parametric, "
+                          "sindy-cc, nn-cc and nn-cc+sym fits, by equation or output error, until the curves change); use charcurves.selection.fit_ensemble for "
+                          "bootstrap bands")
     value, sd = post.curve_sd(name, z)
     zq = NormalDist().inv_cdf(0.5 + level / 2.0)
     return value, value - zq * sd, value + zq * sd
@@ -131,7 +132,7 @@ def uncertainty_summary(model, *, level: float = 0.95) -> dict[str, Any] | None:
         value, sd = post.curve_sd(name, z)
         curves[name] = {"z": z.tolist(), "sd": sd.tolist(), "lo": (value - zq * sd).tolist(),
                         "hi": (value + zq * sd).tolist()}
-    return {"method": "laplace (least squares)", "covariance": post.kind, "hac_bandwidth": post.bandwidth,
+    return {"method": getattr(post, "label", "laplace (least squares)"), "covariance": post.kind, "hac_bandwidth": post.bandwidth,
             "noise_variance": post.noise_variance, "condition_number": post.condition_number, "level": level,
             "scalars": {k: {"mean": stats["mean"][k], "sd": stats["sd"][k]} for k in stats["names"]},
             "correlation": {"names": stats["names"], "matrix": stats["correlation"]}, "curves": curves,

@@ -260,6 +260,17 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
     new = finish_model(template, model.method, curves, gain, offs, new_scalars, prepared, info, None)
     if not seg_after <= seg_before * (1 + 1e-9):
         return _kept(model, report, "failed: the free run did not improve; kept the equation-error model")
+    # the Laplace posterior (._posterior_oe); the equation-error fit's own warnings about its posterior go
+    if "warnings" in new.info:
+        new.info["warnings"] = [w for w in new.info["warnings"] if not w.startswith("uncertainty:")]
+        if not new.info["warnings"]:
+            del new.info["warnings"]
+    if not log.interrupted:
+        from ._posterior_oe import output_error_posterior
+
+        output_error_posterior(new, problem, theta, members, {
+            problem.block_offsets[i] + refits[nm].param.slices()["jump_log_eps"].start: restore[nm]
+            for i, nm in enumerate(template.curve_names) if nm in restore})
     y_first = rows[:, problem.n_shared:problem.n_shared + fm.n_state].mean(axis=0)
     if bounds is not None:  # each record's own first state; one free run per record (no run across a join)
         firsts = [int(np.searchsorted(starts, a)) for a, _ in bounds]

@@ -22,6 +22,8 @@ from ._long_record import SUBSET_SAMPLES as SUBSET_SAMPLES
 from ._posterior_linear import COVARIANCE_KINDS as COVARIANCE_KINDS
 from ._posterior_linear import LinearPosterior as LinearPosterior
 from ._posterior_linear import hac_bandwidth as hac_bandwidth
+from ._posterior_network import NetworkPosterior as NetworkPosterior
+from ._posterior_network import gauge_map as gauge_map
 from ._presets import PRESETS as PRESETS
 from ._presets import TrainingPreset as TrainingPreset
 from ._presets import get_preset as get_preset
@@ -35,7 +37,8 @@ from ._gradient_fit import fit_gradient  # noqa: F401
 from ._linear_fit import fit_linear  # noqa: F401
 from ._long_record import subset_indices  # noqa: F401
 from ._problem import LeastSquaresProblem  # noqa: F401
+from ._posterior_network import attach_posterior, laplace_posterior  # noqa: F401
 
 __all__ = ["DECAY_GROUPS", "EVIDENCE_GUARD", "EVIDENCE_SETTLED", "PRESETS", "RELEVANCE_LABEL", "SUBSET_SAMPLES",
            "SWEEP_TOL", "TrainingPreset", "constrained_sr3", "get_preset", "l0_weight", "COVARIANCE_KINDS",
-           "LinearPosterior", "hac_bandwidth"]
+           "LinearPosterior", "NetworkPosterior", "gauge_map", "hac_bandwidth"]

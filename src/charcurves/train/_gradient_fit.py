@@ -206,7 +206,7 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
     # take the sharpest law they allow (Coulomb's sign) rather than an arbitrary width
     unresolved_jump = sharpen_unresolved_jumps(problem, theta) if jumps else None
 
-    models = []
+    models, member_rows = [], []
     for k in range(K):
         losses = total_loss[k * R:(k + 1) * R]
         if not np.isfinite(losses).any():
@@ -217,6 +217,7 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
         members = (np.flatnonzero(losses <= losses[best] * (1.0 + preset.combine_tol)) if preset.combine == "mean"
                    else np.array([best]))
         rows = theta[k * R + members]
+        member_rows.append(k * R + members)
         s_out = scale_out[k]
         g = float(problem.gain_of(rows).mean())
         factor = s_out
@@ -274,4 +275,19 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
             info["jump_width_unresolved"] = bool(unresolved_jump[k * R + members].all())
         models.append(finish_model(template, method, fitted, g, offs, scal, records[k], info,
                                    mask if E == 1 else None))
+    if not log.interrupted:  # the Laplace posterior of each fit (._posterior_network)
+        from ._posterior_network import network_posteriors
+
+        ctx = {"template": template, "names": list(names), "params": params, "const_names": const_names, "own": own,
+               "neural": {nm: reps[nm].kind == "neural" for nm in names}, "force_side": force_side,
+               "gain": template.gain, "gain_index": problem.gain_index, "bias_index": problem.bias_index,
+               "offsets": problem.offsets, "offset_keys": list(offsets), "E": E, "n": designs[0]["n"],
+               "N_rows": n_rows,
+               "per_record": [{"scales": scales[k], "s_out": scale_out[k], "g_est": g_est[k],
+                               "sig_scale": sig_scale[k]} for k in range(K)]}
+        gauge_offs = sorted(({0} if bias else set()) | ({e for e in offsets} if E > 1 else set()))
+        from ._posterior_network import gauge_map
+
+        ctx["gauge"] = gauge_map(template, list(names), gauge_offs, pinned)
+        network_posteriors(problem, theta, decay.double().cpu(), ctx, member_rows, models)
     return models
