@@ -17,6 +17,7 @@ from ._display import curve_scale, display_expression, display_number
 from ._model_schema import (FORMAT_VERSION, MODEL_SCHEMA, check_array_values, check_model_digest, model_digest,
                             validate_model_document)
 from ._plots import plot_model
+from ._posterior_store import posterior_from_spec, posterior_to_spec
 from ._views import model_html
 
 __all__ = ["FittedModel", "FORMAT_VERSION", "MODEL_SCHEMA", "load_model", "validate_model_document"]
@@ -296,6 +297,8 @@ class FittedModel:
             spec, arr = c.to_spec()
             curve_specs.append(spec)
             arrays.update(arr)
+        post_spec, post_arrays = posterior_to_spec(self)  # the posterior, where the fit has one (._posterior_store)
+        arrays.update(post_arrays)
         doc = {
             "format": "charcurves-model",
             "format_version": FORMAT_VERSION,
@@ -307,6 +310,7 @@ class FittedModel:
             "loss": self.loss if np.isfinite(self.loss) else None,  # standard JSON: no NaN/Infinity
             "curves": curve_specs,
             "info": _jsonable(self.info),
+            **({"posterior": post_spec} if post_spec else {}),
         }
         blob = st_save({k: np.ascontiguousarray(v, dtype=np.float64) for k, v in arrays.items()})
         import hashlib
@@ -416,6 +420,8 @@ def load_model(directory: str | os.PathLike) -> FittedModel:
             curves[c.name] = c
         loss = doc["loss"] if doc["loss"] is not None else float("nan")
         model = FittedModel(template, doc["method"], curves, doc["gain"], doc["offset"], loss, doc.get("info", {}))
+        if "posterior" in doc:  # written since the posterior is saved; older files load without one
+            model.posterior = posterior_from_spec(doc["posterior"], arrays, jpath)
         # last, so that a damaged curve is named by its own check first; an edit that leaves a
         # readable model (the gain changed) is caught here
         check_model_digest(doc, jpath)

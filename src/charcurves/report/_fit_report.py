@@ -14,8 +14,8 @@ import platform
 
 from .._errors import ModelFileError
 from ..fitting import residual_test_rows
-from ..model import (curve_lines, equation_text, figure_png, fit_statistics, load_model, output_error_rows, resolve_truth,
-                     settings_rows)
+from ..model import (curve_lines, equation_text, figure_png, fit_statistics, load_model, output_error_rows,
+                     posterior_bands, resolve_truth, scalar_lines, settings_rows)
 from ._html import Report
 
 __all__ = ["fit_report", "load_fit", "versions", "write_fit_report"]
@@ -142,6 +142,8 @@ def fit_report(model, *, result: dict | None = None, truth=None, title: str | No
 
     rep.heading("Curves")
     bands = getattr(model, "bands", None) or {}
+    if not bands and (bands := posterior_bands(model)):  # the fit's posterior (saved with the model)
+        setattr(model, "bands", bands)
     parts = ["The identified curves over their training range (shaded), drawn 15 % beyond it"]
     if truth:
         parts.append("the true curves dashed")
@@ -158,6 +160,11 @@ def fit_report(model, *, result: dict | None = None, truth=None, title: str | No
 
     rep.heading("Fit statistics")
     rep.table(["quantity", "value"], [list(r) for r in fit_statistics(model)])
+    pm = [line.strip() for line in scalar_lines(model)]
+    if pm:
+        rep.paragraph("The learned scalars with their posterior standard deviations (the bands of the curves above "
+                      "come from the same posterior):")
+        rep.bullets(pm)
     oe = output_error_rows(model)
     rep.heading("Output error (free runs of the model against the measured x)")
     if oe:
