@@ -126,3 +126,4 @@ def test_the_report_of_a_model_folder_shows_bands_and_scalars(saved, tmp_path):
     text = page.read_text(encoding="utf-8")
     assert "uncertainty bands filled" in text
     assert scalar_lines(fits["parametric"])[0].strip().replace("'", "&#x27;") in text
+    assert str(fits["parametric"].to_sympy(uncertainty=True)).split(" + ")[1] in text  # a constant with its ±
