@@ -15,7 +15,7 @@ import numpy as np
 
 from .._lambdify import numpy_function
 
-__all__ = ["PlusMinus", "constant_sds", "constant_sds_of", "uncertain_parts"]
+__all__ = ["PlusMinus", "constant_sds", "constant_sds_of", "uncertain_parts", "closed_form_lines"]
 
 #: How far ``Phi Theta`` may miss ``G`` (relative, Frobenius) for the constants to carry the posterior.
 SPAN_TOLERANCE = 1e-6
@@ -150,3 +150,29 @@ def uncertain_parts(model, digits: int | None):
         return plain(value, constant)
 
     return exprs, num
+
+
+def closed_form_lines(model) -> list[str]:
+    """summary.txt lines: each closed form with its constants' posterior sd (1 sd), where it has them.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.model import closed_form_lines
+    >>> from charcurves.systems import get_system
+    >>> record = cc.corrupt(get_system("duffing").simulate(), 20, seed=0)
+    >>> print(closed_form_lines(cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3"))[0])
+      f1(z) = (0.3033 ± 0.0023)*z (1 sd, posterior)
+    """
+    from ._posterior import model_posterior
+
+    post = model_posterior(model)
+    if post is None:
+        return []
+    exprs, _ = uncertain_parts(model, None)
+    out = []
+    for name, expr in exprs.items():
+        sds = constant_sds(model, name, post) if expr is not None else None
+        if sds:
+            out.append(f"  {name}(z) = {expr} (1 sd, posterior)")
+    return out

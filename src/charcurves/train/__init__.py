@@ -22,6 +22,7 @@ from ._long_record import SUBSET_SAMPLES as SUBSET_SAMPLES
 from ._posterior_linear import COVARIANCE_KINDS as COVARIANCE_KINDS
 from ._posterior_linear import LinearPosterior as LinearPosterior
 from ._posterior_linear import hac_bandwidth as hac_bandwidth
+from ._posterior_factors import covariance_factors as covariance_factors
 from ._presets import PRESETS as PRESETS
 from ._presets import TrainingPreset as TrainingPreset
 from ._presets import get_preset as get_preset
@@ -38,4 +39,4 @@ from ._problem import LeastSquaresProblem  # noqa: F401
 
 __all__ = ["DECAY_GROUPS", "EVIDENCE_GUARD", "EVIDENCE_SETTLED", "PRESETS", "RELEVANCE_LABEL", "SUBSET_SAMPLES",
            "SWEEP_TOL", "TrainingPreset", "constrained_sr3", "get_preset", "l0_weight", "COVARIANCE_KINDS",
-           "LinearPosterior", "hac_bandwidth"]
+           "LinearPosterior", "hac_bandwidth", "covariance_factors"]
