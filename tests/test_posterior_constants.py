@@ -56,3 +56,18 @@ def test_without_a_posterior_the_option_says_why(record):
     model.curves["f2"].shift += 1.0  # the posterior no longer describes the curve
     with pytest.raises(ConfigError, match="has no posterior, so its constants have no ±"):
         model.to_latex(uncertainty=True)
+
+
+def test_summary_txt_writes_each_closed_form_with_its_sds(record, tmp_path):
+    from charcurves.cli import main
+    from charcurves.model import closed_form_lines
+
+    csv = tmp_path / "rec.csv"
+    record.to_csv(csv)
+    out = tmp_path / "fit"
+    assert main(["fit", str(csv), "--method", "parametric", "--basis", BASIS, "--out", str(out), "--no-figure",
+                 "--quiet"]) == 0
+    summary = (out / "summary.txt").read_text(encoding="utf-8")
+    lines = closed_form_lines(cc.load_model(out / "model"))
+    assert len(lines) == 2 and all(line in summary for line in lines)
+    assert lines[0].startswith("  f1(z) = (0.30") and lines[0].endswith("*z (1 sd, posterior)")
