@@ -74,3 +74,16 @@ def test_a_constant_the_record_does_not_determine_warns(record):
     model = FittedModel(get_template("separable"), "demo", curves, 1.0, 0.0, 0.0)
     post = closed_form_posterior(model, record)
     assert post.warnings() and "does not determine every constant" in post.warnings()[0]
+
+
+def test_kinked_closed_forms_get_a_posterior_and_a_derivative_numpy_cannot_print_gives_none(record):
+    curves = {"f1": SymbolicFittedCurve("f1", "x'", (-1.5, 1.5), "0.3*z + 0.01*sign(z)"),
+              "f2": SymbolicFittedCurve("f2", "x", (-1.6, 1.6), "z**3 - z + 0.1*Abs(z - 0.5) - 0.05")}
+    model = FittedModel(get_template("separable"), "demo", curves, 1.0, 0.0, 0.0)
+    post = closed_form_posterior(model, record)  # Abs' derivative on a real z: sign
+    assert post.params == [("f1", "theta0"), ("f1", "theta1"), ("f2", "theta0"), ("f2", "theta1"), "offset"]
+    _, sd = post.curve_sd("f2", np.array([0.0, 1.0]))
+    assert sd[0] == 0.0 and np.isfinite(sd[1]) and sd[1] > 0
+    curves["f2"] = SymbolicFittedCurve("f2", "x", (-1.6, 1.6), "z**3 - z + 0.1*sign(z - 0.5) + 0.1")
+    assert closed_form_posterior(FittedModel(get_template("separable"), "demo", curves, 1.0, 0.0, 0.0),
+                                 record) is None  # d/dc sign(z - c) = -2 DiracDelta(z - c): no posterior, no error

@@ -127,14 +127,22 @@ class ClosedFormPosterior:
 
 def closed_form_posterior(model, traj, *, mask=None) -> ClosedFormPosterior | None:
     """The posterior of ``model``'s closed-form constants on the record ``traj`` (with derivatives) by
-    equation error; None when a curve has no closed form or ``traj`` has no derivatives."""
+    equation error; None when a curve has no closed form, ``traj`` has no derivatives or a closed form's
+    derivative cannot be evaluated."""
+    if not getattr(traj, "has_derivatives", False) or any(c.expression() is None for c in model.curves.values()):
+        return None
+    try:
+        return _build(model, traj, mask)
+    except (TypeError, ValueError, NameError, ZeroDivisionError, OverflowError, AttributeError, NotImplementedError):
+        return None  # a closed form whose derivative numpy cannot evaluate (DiracDelta of a Heaviside): no posterior
+
+
+def _build(model, traj, mask):
     import sympy as sp
 
     from ..templates import sticking_mask
     from ..train import covariance_factors
 
-    if not getattr(traj, "has_derivatives", False) or any(c.expression() is None for c in model.curves.values()):
-        return None
     D = model.template.design(traj)
     n, E = D["n"], D["E"]
     keep = ~sticking_mask(traj) if mask is None else np.asarray(mask, bool)
@@ -144,22 +152,23 @@ def closed_form_posterior(model, traj, *, mask=None) -> ClosedFormPosterior | No
     cols: list = []
     jac: dict = {}
     carries_constant = False
+    zr = sp.Symbol("z", real=True)  # the derivative of Abs(z) is sign(z) on a real z (numpy can print it)
     for name, curve in model.curves.items():
-        expr = sp.sympify(curve.expression())
+        expr = sp.sympify(curve.expression()).xreplace({z: zr})
         add = _additive_float(expr)
         anchored = add is not None and abs(float(curve(np.array([0.0]))[0])) <= 1e-9 * (
             float(np.max(np.abs(curve(np.linspace(curve.domain[0], curve.domain[1], 21))))) + 1e-300)
         body = expr - add if anchored else expr
         carries_constant = carries_constant or (add is not None and not anchored)
         floats = sorted(body.atoms(sp.Float), key=lambda f: (abs(float(f)), float(f)))
-        thetas = sp.symbols(f"theta0:{len(floats)}") if floats else ()
+        thetas = sp.symbols(f"theta0:{len(floats)}", real=True) if floats else ()
         param = body.xreplace(dict(zip(floats, thetas)))
         values = [float(f) for f in floats]
         jac[name] = []
         for th in thetas:
             d = sp.diff(param, th)
-            d = d - d.subs(z, 0) if anchored else d
-            fn = numpy_function([z, *thetas], d)
+            d = d - d.subs(zr, 0) if anchored else d
+            fn = numpy_function([zr, *thetas], d)
 
             def col(u, fn=fn, values=values):
                 return fn(u, *values)

@@ -131,7 +131,7 @@ def uncertainty_summary(model, *, level: float = 0.95) -> dict[str, Any] | None:
         value, sd = post.curve_sd(name, z)
         curves[name] = {"z": z.tolist(), "sd": sd.tolist(), "lo": (value - zq * sd).tolist(),
                         "hi": (value + zq * sd).tolist()}
-    return {"method": "laplace (least squares)", "covariance": post.kind, "hac_bandwidth": post.bandwidth,
+    return {"method": getattr(post, "method", "laplace (least squares)"), "covariance": post.kind, "hac_bandwidth": post.bandwidth,
             "noise_variance": post.noise_variance, "condition_number": post.condition_number, "level": level,
             "scalars": {k: {"mean": stats["mean"][k], "sd": stats["sd"][k]} for k in stats["names"]},
             "correlation": {"names": stats["names"], "matrix": stats["correlation"]}, "curves": curves,

@@ -66,15 +66,18 @@ def constant_sds(model, name: str, post) -> dict | None:
     floats = sorted(expr.atoms(sp.Float), key=lambda f: (abs(float(f)), float(f)))
     if not floats:
         return {}
-    z = sp.Symbol("z")
-    thetas = sp.symbols(f"theta0:{len(floats)}")
-    param = expr.xreplace(dict(zip(floats, thetas)))
+    z = sp.Symbol("z", real=True)  # the derivative of Abs(z) is sign(z) on a real z (numpy can print it)
+    thetas = sp.symbols(f"theta0:{len(floats)}", real=True)
+    param = expr.xreplace({sp.Symbol("z"): z, **dict(zip(floats, thetas))})
     grid = np.linspace(curve.domain[0], curve.domain[1], 101)
     _, G, infinite = post.curve_factor(name, grid)
     values = [float(f) for f in floats]
-    with np.errstate(all="ignore"):
-        Phi = np.column_stack([np.broadcast_to(np.asarray(numpy_function([z, *thetas], sp.diff(param, th))(grid, *values),
-                                                          dtype=float), grid.shape) for th in thetas])
+    try:
+        with np.errstate(all="ignore"):
+            Phi = np.column_stack([np.broadcast_to(np.asarray(numpy_function([z, *thetas], sp.diff(param, th))(
+                grid, *values), dtype=float), grid.shape) for th in thetas])
+    except (TypeError, ValueError, NameError, NotImplementedError):  # a derivative numpy cannot evaluate
+        return None
     if not np.all(np.isfinite(Phi)):
         return None
     Theta, *_ = np.linalg.lstsq(Phi, G, rcond=None)
