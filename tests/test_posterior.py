@@ -177,8 +177,8 @@ def test_bands_without_a_posterior_warn_and_name_the_bootstrap(record):
     result = model.result_dict()
     assert "bands" not in result and "uncertainty" not in result
     assert [w for w in model.info["warnings"] if "has no posterior" in w] == [
-        "bands: this poly-cc fit has no posterior (today only least-squares fits by equation error have one: "
-        "poly-cc, parametric, sindy-cc); use --bands N for N bootstrap refits"]
+        "bands: this poly-cc fit has no posterior (today least-squares fits by equation error have one: "
+        "poly-cc, parametric, sindy-cc, and post-SR closed forms); use --bands N for N bootstrap refits"]
 
 
 def test_a_sparse_fit_has_the_posterior_of_its_active_terms(record):

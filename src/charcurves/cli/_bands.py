@@ -17,5 +17,5 @@ def attach_posterior_bands(model, level: float, quiet: bool) -> None:
         attach_bands(model, bands)
         return
     model.info.setdefault("warnings", []).append(
-        f"bands: this {model.method} fit has no posterior (today only least-squares fits by equation error have one: "
-        "poly-cc, parametric, sindy-cc); use --bands N for N bootstrap refits")
+        f"bands: this {model.method} fit has no posterior (today least-squares fits by equation error have one: "
+        "poly-cc, parametric, sindy-cc, and post-SR closed forms); use --bands N for N bootstrap refits")

@@ -5,8 +5,10 @@ bootstrap bands of :mod:`charcurves.selection` (``model.bands``) and in ``result
 
 A posterior exists where the fit that produced the model computed one (today: the least-squares
 fits of Poly-CC, parametric bases and any LinearCurve, and the sparse SINDy fits on the terms they
-kept; equation error; see :mod:`._posterior_linear`). A model whose curves were replaced afterwards (output-error refinement,
-post-SR, a model loaded from disk) has none, and asking for a band says so.
+kept, equation error, see :mod:`charcurves.train`; post-SR closed forms' constants, see
+:func:`charcurves.fitting.closed_form_posterior`). It is saved with the model
+(:class:`._posterior_store.StoredPosterior`). A model whose curves were replaced afterwards (an
+output-error refinement) has none, and asking for a band says so.
 """
 
 from __future__ import annotations
@@ -68,7 +70,7 @@ def curve_band(model, name: str, z, level: float = 0.95) -> tuple[np.ndarray, np
     post = model_posterior(model)
     if post is None:
         raise ConfigError(f"this {model.method} model has no posterior (it exists for least-squares fits by "
-                          "equation error: poly-cc, parametric, sindy-cc); use charcurves.selection.fit_ensemble for bootstrap "
+                          "equation error: poly-cc, parametric, sindy-cc, and post-SR closed forms); use charcurves.selection.fit_ensemble for bootstrap "
                           "bands")
     value, sd = post.curve_sd(name, z)
     zq = NormalDist().inv_cdf(0.5 + level / 2.0)
