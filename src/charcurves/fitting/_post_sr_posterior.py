@@ -128,7 +128,23 @@ class ClosedFormPosterior:
 def closed_form_posterior(model, traj, *, mask=None) -> ClosedFormPosterior | None:
     """The posterior of ``model``'s closed-form constants on the record ``traj`` (with derivatives) by
     equation error; None when a curve has no closed form, ``traj`` has no derivatives or a closed form's
-    derivative cannot be evaluated."""
+    derivative cannot be evaluated. Post-SR (:func:`distill_model` given the record) attaches it.
+
+    Examples
+    --------
+    >>> import charcurves as cc
+    >>> from charcurves.curves import SymbolicFittedCurve
+    >>> from charcurves.fitting import FittedModel, closed_form_posterior
+    >>> from charcurves.systems import get_system
+    >>> from charcurves.templates import get_template
+    >>> record = cc.corrupt(get_system("duffing").simulate(), 20, seed=0)
+    >>> curves = {"f1": SymbolicFittedCurve("f1", "x'", (-1.5, 1.5), "0.3*z"),
+    ...           "f2": SymbolicFittedCurve("f2", "x", (-1.5, 1.5), "1.0*z**3 - 1.0*z")}
+    >>> model = FittedModel(get_template("separable"), "demo", curves, 1.0, 0.0, 0.0)
+    >>> model.posterior = closed_form_posterior(model, record)
+    >>> print(model.to_sympy(curves=True, uncertainty=True)["f2"])
+    (1 ± 0.0026)*z**3 - (1 ± 0.0034)*z
+    """
     if not getattr(traj, "has_derivatives", False) or any(c.expression() is None for c in model.curves.values()):
         return None
     try:
