@@ -178,7 +178,7 @@ def test_bands_without_a_posterior_warn_and_name_the_bootstrap(record):
     assert "bands" not in result and "uncertainty" not in result
     assert [w for w in model.info["warnings"] if "has no posterior" in w] == [
         "bands: this poly-cc fit has no posterior (today poly-cc, parametric, sindy-cc, nn-cc and "
-        "nn-cc+sym fits have one, by equation or output error, until post-SR changes the curves); use --bands N for "
+        "nn-cc+sym fits have one, by equation or output error, and post-SR closed forms); use --bands N for "
         "N bootstrap refits"]
 
 

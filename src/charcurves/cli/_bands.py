@@ -18,4 +18,4 @@ def attach_posterior_bands(model, level: float, quiet: bool) -> None:
         return
     model.info.setdefault("warnings", []).append(
         f"bands: this {model.method} fit has no posterior (today poly-cc, parametric, sindy-cc, nn-cc and "
-        "nn-cc+sym fits have one, by equation or output error, until post-SR changes the curves); use --bands N for N bootstrap refits")
+        "nn-cc+sym fits have one, by equation or output error, and post-SR closed forms); use --bands N for N bootstrap refits")

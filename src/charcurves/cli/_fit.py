@@ -213,9 +213,10 @@ def write_results(model, out_dir, *, method, family, free_gain, truth, figure, q
                      "and model/ keep every digit)")
     for name, value in result.get("scalars", {}).items():  # unknown scalars of user-written templates
         lines.append(f"  {name} = {value:.6g}")
-    from ..fitting import scalar_lines
+    from ..fitting import closed_form_lines, scalar_lines
 
     lines += scalar_lines(model)  # the posterior's ± (where the fit has one)
+    lines += closed_form_lines(model)  # the closed forms' constants with theirs
     if "output_error" in model.info:
         from ..fitting import summary_lines
 

@@ -14,6 +14,7 @@ plot_curves, plot_model, model_html, curve_lines, ...      views of a fitted mod
 METHODS, PRESETS, TrainingPreset                           method and training presets
 fit_ensemble(s), bootstrap_records, detect_symmetry, parity_tests   ensembles and parity tests
 curve_band, posterior_bands, uncertainty_summary, LinearPosterior   the posterior of a fit
+closed_form_posterior, ClosedFormPosterior     the posterior of post-SR constants
 """
 
 from ._ensemble import ENSEMBLE_KINDS as ENSEMBLE_KINDS
@@ -67,11 +68,14 @@ from ..model import plot_model as plot_model
 from ..model import resolve_truth as resolve_truth
 from ._post_sr import DATA_LOSS_TOLERANCE as DATA_LOSS_TOLERANCE
 from ._post_sr import distill_model as distill_model
+from ._post_sr_posterior import ClosedFormPosterior as ClosedFormPosterior
+from ._post_sr_posterior import closed_form_posterior as closed_form_posterior
 from ..model import curve_band as curve_band
 from ..model import model_posterior as model_posterior
 from ..model import posterior_bands as posterior_bands
 from ..model import scalar_lines as scalar_lines
 from ..model import uncertainty_summary as uncertainty_summary
+from ..model import closed_form_lines as closed_form_lines
 from ..train import COVARIANCE_KINDS as COVARIANCE_KINDS
 from ..train import LinearPosterior as LinearPosterior
 from ..train import hac_bandwidth as hac_bandwidth

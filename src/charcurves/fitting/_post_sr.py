@@ -162,4 +162,9 @@ def distill_model(model, *, sr_options: dict | None = None, random_state: int = 
         info["loss_recomputed"] = True
     else:
         info["loss_recomputed"] = False
-    return FittedModel(model.template, model.method, curves, model.gain, offset, loss, info)
+    out = FittedModel(model.template, model.method, curves, model.gain, offset, loss, info)
+    if traj is not None and traj.has_derivatives:  # the constants' posterior (._post_sr_posterior)
+        from ._post_sr_posterior import closed_form_posterior
+
+        out.posterior = closed_form_posterior(out, traj)
+    return out

@@ -10,6 +10,7 @@ display_expression, format_closed_form, display_number     closed forms and numb
 equation_text, curve_lines, fit_statistics, model_html ... views of a model (text, HTML)
 plot_curves, plot_model, figure_png, resolve_truth         figures (matplotlib loads when drawing)
 closed_form_text, summary_lines                            what the command line prints of a fit
+StoredPosterior, PlusMinus, constant_sds_of, closed_form_lines   a fit's posterior as saved; constants' ±
 """
 
 from ._display import DISPLAY_DIGITS as DISPLAY_DIGITS
@@ -33,6 +34,10 @@ from ._posterior import model_posterior as model_posterior
 from ._posterior import posterior_bands as posterior_bands
 from ._posterior import scalar_lines as scalar_lines
 from ._posterior import uncertainty_summary as uncertainty_summary
+from ._posterior_constants import PlusMinus as PlusMinus
+from ._posterior_constants import closed_form_lines as closed_form_lines
+from ._posterior_constants import constant_sds_of as constant_sds_of
+from ._posterior_store import StoredPosterior as StoredPosterior
 from ._plots import plot_curves as plot_curves
 from ._plots import plot_model as plot_model
 from ._plots import resolve_truth as resolve_truth

@@ -17,6 +17,7 @@ from ._display import curve_scale, display_expression, display_number
 from ._model_schema import (FORMAT_VERSION, MODEL_SCHEMA, check_array_values, check_model_digest, model_digest,
                             validate_model_document)
 from ._plots import plot_model
+from ._posterior_store import posterior_from_spec, posterior_to_spec
 from ._views import model_html
 
 __all__ = ["FittedModel", "FORMAT_VERSION", "MODEL_SCHEMA", "load_model", "validate_model_document"]
@@ -143,14 +144,15 @@ class FittedModel:
             return {n: c.expression() for n, c in self.curves.items()}
         return {n: display_expression(c.expression(), c.domain, digits=digits) for n, c in self.curves.items()}
 
-    def to_sympy(self, *, curves: bool = False, digits: int | None = None):
+    def to_sympy(self, *, curves: bool = False, digits: int | None = None, uncertainty: bool = False):
         """The identified equation as a sympy ``Eq`` (a list of them for several equations), or with
         ``curves=True`` a dict of curve name -> closed form in ``z``.
 
         Every curve must have a closed form (a basis method, SR-CC, or a +post-sr method); a neural
         curve raises :class:`~charcurves.ConfigError` naming the fix. ``digits`` rounds the numbers
         to that many significant digits and drops the terms that are zero at that precision over each
-        curve's training range (for display; the model keeps every digit).
+        curve's training range (for display; the model keeps every digit). ``uncertainty=True`` writes
+        each constant that has a posterior as a symbol printed ``(mean ± sd)``, 1 sd (every term kept).
 
         Examples
         --------
@@ -163,10 +165,16 @@ class FittedModel:
         import sympy as sp
 
         exprs = self._expressions(digits)
+        if uncertainty:  # ._posterior_constants: the constants with their posterior sd
+            from ._posterior_constants import uncertain_parts
+
+            exprs, num = uncertain_parts(self, digits)
         if curves:
             return exprs
 
-        if digits is None:
+        if uncertainty:
+            pass
+        elif digits is None:
             def num(value: float, constant: bool = False):
                 return sp.Float(value)
         else:  # rounded; a constant below the precision of the curves' values is dropped
@@ -210,15 +218,16 @@ class FittedModel:
             out.append(eq_.subs({s: sp.Symbol(display(s.name), real=True) for s in eq_.free_symbols}))
         return out[0] if len(out) == 1 else out
 
-    def to_latex(self, digits: int | None = 4) -> str:
+    def to_latex(self, digits: int | None = 4, *, uncertainty: bool = False) -> str:
         """The equation with the closed forms written in, as LaTeX (several equations joined by a LaTeX line break).
 
         Numbers are printed to ``digits`` significant digits and terms that are zero at that
-        precision are dropped (None: every stored digit). Needs closed forms, as :meth:`to_sympy`.
+        precision are dropped (None: every stored digit). Needs closed forms, as :meth:`to_sympy`;
+        ``uncertainty=True`` writes the constants as ``(mean \\pm sd)`` (1 sd), e.g. ``(0.299 \\pm 0.004) z|z|``.
         """
         import sympy as sp
 
-        eq = self.to_sympy(digits=digits)
+        eq = self.to_sympy(digits=digits, uncertainty=uncertainty)
         return " \\\\ ".join(sp.latex(e) for e in eq) if isinstance(eq, list) else sp.latex(eq)
 
     # ------------------------------------------------------------------ notebook views
@@ -296,6 +305,8 @@ class FittedModel:
             spec, arr = c.to_spec()
             curve_specs.append(spec)
             arrays.update(arr)
+        post_spec, post_arrays = posterior_to_spec(self)  # the posterior, where the fit has one (._posterior_store)
+        arrays.update(post_arrays)
         doc = {
             "format": "charcurves-model",
             "format_version": FORMAT_VERSION,
@@ -307,6 +318,7 @@ class FittedModel:
             "loss": self.loss if np.isfinite(self.loss) else None,  # standard JSON: no NaN/Infinity
             "curves": curve_specs,
             "info": _jsonable(self.info),
+            **({"posterior": post_spec} if post_spec else {}),
         }
         blob = st_save({k: np.ascontiguousarray(v, dtype=np.float64) for k, v in arrays.items()})
         import hashlib
@@ -416,6 +428,8 @@ def load_model(directory: str | os.PathLike) -> FittedModel:
             curves[c.name] = c
         loss = doc["loss"] if doc["loss"] is not None else float("nan")
         model = FittedModel(template, doc["method"], curves, doc["gain"], doc["offset"], loss, doc.get("info", {}))
+        if "posterior" in doc:  # written since the posterior is saved; older files load without one
+            model.posterior = posterior_from_spec(doc["posterior"], arrays, jpath)
         # last, so that a damaged curve is named by its own check first; an edit that leaves a
         # readable model (the gain changed) is caught here
         check_model_digest(doc, jpath)

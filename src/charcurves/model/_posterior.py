@@ -3,11 +3,14 @@ deviations and correlations of the gain, free constants and scalars, in the same
 bootstrap bands of :mod:`charcurves.selection` (``model.bands``) and in ``result.json``
 ``uncertainty``.
 
-A posterior exists where the fit that produced the model computed one (today, by equation error: the
-least-squares fits of Poly-CC, parametric bases and any LinearCurve, the sparse SINDy fits on the
-terms they kept, see ``train._posterior_linear``; and the gradient-trained fits, NN-CC and
-NN-CC+sym, by the Laplace approximation, see ``train._posterior_network``). A model whose curves were replaced afterwards (output-error refinement,
-post-SR, a model loaded from disk) has none, and asking for a band says so.
+A posterior exists where the fit that produced the model computed one: the least-squares fits of
+Poly-CC, parametric bases and any LinearCurve, and the sparse SINDy fits on the terms they kept
+(``train._posterior_linear``); the gradient-trained fits, NN-CC and NN-CC+sym, by the Laplace
+approximation (``train._posterior_network``); output-error refinements, with the segment initial
+states marginalised (``objectives._posterior_oe``); post-SR closed forms' constants
+(:func:`charcurves.fitting.closed_form_posterior`). It is saved with the model
+(:class:`._posterior_store.StoredPosterior`). A model whose curves were replaced afterwards
+without a posterior of its own has none, and asking for a band says so.
 """
 
 from __future__ import annotations
@@ -49,6 +52,12 @@ def model_posterior(model):
     return post
 
 
+def posterior_label(post) -> str:
+    """The ``result.json`` ``uncertainty.method`` of a posterior (networks and output error name it
+    ``label``; least-squares, post-SR and stored posteriors ``method``)."""
+    return str(getattr(post, "label", None) or getattr(post, "method", "laplace (least squares)"))
+
+
 def curve_band(model, name: str, z, level: float = 0.95) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(value, lo, hi)``: the pointwise ``level`` credible band of curve ``name`` at ``z``.
 
@@ -69,8 +78,8 @@ def curve_band(model, name: str, z, level: float = 0.95) -> tuple[np.ndarray, np
     post = model_posterior(model)
     if post is None:
         raise ConfigError(f"this {model.method} model has no posterior (it exists for poly-cc, parametric, "
-                          "sindy-cc, nn-cc and nn-cc+sym fits, by equation or output error, until the curves change); use charcurves.selection.fit_ensemble for "
-                          "bootstrap bands")
+                          "sindy-cc, nn-cc and nn-cc+sym fits, by equation or output error, and post-SR closed "
+                          "forms); use charcurves.selection.fit_ensemble for bootstrap bands")
     value, sd = post.curve_sd(name, z)
     zq = NormalDist().inv_cdf(0.5 + level / 2.0)
     return value, value - zq * sd, value + zq * sd
@@ -132,7 +141,7 @@ def uncertainty_summary(model, *, level: float = 0.95) -> dict[str, Any] | None:
         value, sd = post.curve_sd(name, z)
         curves[name] = {"z": z.tolist(), "sd": sd.tolist(), "lo": (value - zq * sd).tolist(),
                         "hi": (value + zq * sd).tolist()}
-    return {"method": getattr(post, "label", "laplace (least squares)"), "covariance": post.kind, "hac_bandwidth": post.bandwidth,
+    return {"method": posterior_label(post), "covariance": post.kind, "hac_bandwidth": post.bandwidth,
             "noise_variance": post.noise_variance, "condition_number": post.condition_number, "level": level,
             "scalars": {k: {"mean": stats["mean"][k], "sd": stats["sd"][k]} for k in stats["names"]},
             "correlation": {"names": stats["names"], "matrix": stats["correlation"]}, "curves": curves,

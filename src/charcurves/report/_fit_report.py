@@ -14,8 +14,8 @@ import platform
 
 from .._errors import ModelFileError
 from ..fitting import residual_test_rows
-from ..model import (curve_lines, equation_text, figure_png, fit_statistics, load_model, output_error_rows, resolve_truth,
-                     settings_rows)
+from ..model import (curve_lines, equation_text, figure_png, fit_statistics, load_model, model_posterior,
+                     output_error_rows, posterior_bands, resolve_truth, scalar_lines, settings_rows)
 from ._html import Report
 
 __all__ = ["fit_report", "load_fit", "versions", "write_fit_report"]
@@ -135,6 +135,8 @@ def fit_report(model, *, result: dict | None = None, truth=None, title: str | No
         rep.paragraph(f"`{text}`")
         rep.paragraph("Numbers to 4 significant digits; terms below that precision over the curves' training "
                       "ranges are left out. The model files keep every digit.")
+        if model_posterior(model) is not None:  # every term, each constant with its posterior sd
+            rep.paragraph(f"With 1-sd posterior uncertainties: `{model.to_sympy(uncertainty=True)}`")
     else:
         rep.paragraph("Some curves have no closed form (neural curves not distilled); refit with a +post-sr "
                       "method or run `charcurves.fitting.distill_model` to get one.")
@@ -142,6 +144,8 @@ def fit_report(model, *, result: dict | None = None, truth=None, title: str | No
 
     rep.heading("Curves")
     bands = getattr(model, "bands", None) or {}
+    if not bands and (bands := posterior_bands(model)):  # the fit's posterior (saved with the model)
+        setattr(model, "bands", bands)
     parts = ["The identified curves over their training range (shaded), drawn 15 % beyond it"]
     if truth:
         parts.append("the true curves dashed")
@@ -158,6 +162,11 @@ def fit_report(model, *, result: dict | None = None, truth=None, title: str | No
 
     rep.heading("Fit statistics")
     rep.table(["quantity", "value"], [list(r) for r in fit_statistics(model)])
+    pm = [line.strip() for line in scalar_lines(model)]
+    if pm:
+        rep.paragraph("The learned scalars with their posterior standard deviations (the bands of the curves above "
+                      "come from the same posterior):")
+        rep.bullets(pm)
     oe = output_error_rows(model)
     rep.heading("Output error (free runs of the model against the measured x)")
     if oe:

@@ -17,5 +17,6 @@ from ._sampled import stage_inputs as stage_inputs
 from ._validate import estimate_initial_state as estimate_initial_state
 from ._validate import free_run_error as free_run_error
 from ._validate import validate_cli as validate_cli
+from ._predictive import predictive_band as predictive_band
 from ._families import SimulationStopped as SimulationStopped
 from ._sampled import check_hold as check_hold

@@ -173,14 +173,25 @@ def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_co
                         "rmse_rows": [start + int(init_window or 0), stop],
                         "rmse_relative_to_std": rmse / float(np.std(x)) if np.std(x) > 0 else None,
                         "std_x": float(np.std(x)), "seconds": res.seconds})
-        sims.append((seg, res, f"{start}:{stop}"))
+        band = None
+        if res.ok:  # the posterior propagated through the free run, where the model has one (._predictive)
+            from ._predictive import predictive_band
+
+            band = predictive_band(model, seg, float(res.x[0]), float(res.v[0]), hold=hold, substeps=substeps,
+                                   skip=int(init_window or 0))
+            if band is not None:
+                results[-1]["predictive_band"] = {k: band[k] for k in ("level", "inside", "draws", "diverged",
+                                                                       "noise_sd")}
+        sims.append((seg, res, f"{start}:{stop}", band))
     how = "initial state fitted to the first 128 samples" if init_window is None else \
         f"initial state fitted to the first {init_window} samples of each span, the RMSE counted after them"
     lines = [f"free run of {model_dir} ({model.method}; hold {hold}, {substeps} RK4 steps per sample; {how})"]
     for r in results:
         pct = "" if r["rmse_relative_to_std"] is None else f" ({100 * r['rmse_relative_to_std']:.3g} % of std x)"
+        pb = r.get("predictive_band")
+        inside = "" if pb is None else f", {100 * pb['inside']:.3g} % of x inside the 95 % predictive band"
         lines.append(f"  rows {r['rows'][0]}:{r['rows'][1]}: {r['status']}, RMSE {r['rmse']:.5g}{pct}, "
-                     f"{r['seconds']:.2f} s")
+                     f"{r['seconds']:.2f} s{inside}")
     if out_dir is not None:
         from ..io import atomic_write_bytes, json_bytes, non_finite_paths
 
@@ -206,7 +217,7 @@ def _validation_figure(path, sims) -> None:
 
     fig, axes = plt.subplots(len(sims), 2, figsize=(12, 2.8 * len(sims)), squeeze=False,
                              gridspec_kw={"width_ratios": [1, 2]})
-    for row, (seg, res, label) in enumerate(sims):
+    for row, (seg, res, label, band) in enumerate(sims):
         t, x = np.asarray(seg.t), np.asarray(seg.x)
         n = res.x.size
         mid = x.size // 2
@@ -215,6 +226,9 @@ def _validation_figure(path, sims) -> None:
         ax.plot(t[win], x[win], "k", lw=1.5, label="measured")
         if n:
             ax.plot(t[:n][win], res.x[win], "C1", lw=1.0, label="free run")
+        if band is not None:
+            ax.fill_between(t[win], band["lo"][win], band["hi"][win], color="C1", alpha=0.25, lw=0,
+                            label=f"{100 * band['level']:g} % predictive band ({100 * band['inside']:.3g} % inside)")
         ax.set_title(f"{seg.name} rows {label}: zoom", fontsize=9)
         ax.set_xlabel("t")
         ax.set_ylabel("x")
@@ -222,6 +236,8 @@ def _validation_figure(path, sims) -> None:
         ax = axes[row, 1]
         if n:
             ax.plot(t[:n], res.x - x[:n], "C3", lw=0.5)
+        if band is not None:
+            ax.fill_between(t, band["lo"] - band["centre"], band["hi"] - band["centre"], color="C1", alpha=0.25, lw=0)
         ax.set_title(f"simulation error ({res.status}; std x {np.std(x):.4g})", fontsize=9)
         ax.set_xlabel("t")
         ax.set_ylabel("simulated - measured")

@@ -24,6 +24,7 @@ from ._posterior_linear import LinearPosterior as LinearPosterior
 from ._posterior_linear import hac_bandwidth as hac_bandwidth
 from ._posterior_network import NetworkPosterior as NetworkPosterior
 from ._posterior_network import gauge_map as gauge_map
+from ._posterior_factors import covariance_factors as covariance_factors
 from ._presets import PRESETS as PRESETS
 from ._presets import TrainingPreset as TrainingPreset
 from ._presets import get_preset as get_preset
@@ -41,4 +42,4 @@ from ._posterior_network import attach_posterior, laplace_posterior  # noqa: F40
 
 __all__ = ["DECAY_GROUPS", "EVIDENCE_GUARD", "EVIDENCE_SETTLED", "PRESETS", "RELEVANCE_LABEL", "SUBSET_SAMPLES",
            "SWEEP_TOL", "TrainingPreset", "constrained_sr3", "get_preset", "l0_weight", "COVARIANCE_KINDS",
-           "LinearPosterior", "NetworkPosterior", "gauge_map", "hac_bandwidth"]
+           "LinearPosterior", "NetworkPosterior", "gauge_map", "hac_bandwidth", "covariance_factors"]

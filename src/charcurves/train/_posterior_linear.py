@@ -306,6 +306,23 @@ class LinearPosterior:
         c0, _, jc, _ = self._jacobians({name: z})
         return c0[name].reshape(z.shape), np.sqrt(self._variance(jc[name])).reshape(z.shape)
 
+    def curve_factor(self, name: str, z) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(value, G, infinite)`` of curve ``name`` at ``z``: the posterior of the values is ``value + G u``
+        with ``u`` standard normal, shared by every curve and scalar of the fit (so samples and
+        sensitivities keep their correlations); ``infinite`` marks points whose variance is infinite."""
+        z = np.asarray(z, dtype=float).reshape(-1)
+        c0, _, jc, _ = self._jacobians({name: z})
+        J = jc[name]
+        return c0[name], np.nan_to_num(J @ self._factors[self.kind]), ~np.isfinite(self._variance(J))
+
+    def scalar_factor(self) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
+        """``(names, mean, G, infinite)`` of the learned scalars, in the layout of :meth:`curve_factor`."""
+        _, s0, _, js = self._jacobians({})
+        names = [k for k in s0 if np.any(js[k] != 0)]
+        J = np.stack([js[k] for k in names]) if names else np.zeros((0, self.beta.size))
+        G = np.nan_to_num(J @ self._factors[self.kind])
+        return names, np.array([s0[k] for k in names], dtype=float), G, ~np.isfinite(self._variance(J))
+
     def scalar_stats(self) -> dict[str, Any]:
         """Mean, sd and correlations of the gain, the free constants and the scalars (those the fit
         learned; a fixed gain is left out)."""

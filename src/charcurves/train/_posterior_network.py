@@ -170,6 +170,21 @@ class NetworkPosterior:
         n = z.size
         return center[:n].reshape(z.shape), np.sqrt(np.clip(var[:n], 0.0, None)).reshape(z.shape)
 
+    def curve_factor(self, name: str, z) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(value, G, infinite)`` of curve ``name`` at ``z``: the posterior of the values is ``value + G u``
+        with ``u`` standard normal and shared by every curve and scalar (the members' factors and spreads
+        side by side, as in :meth:`simultaneous_factor`), so a saved posterior keeps the correlations."""
+        z = np.asarray(z, dtype=float).reshape(-1)
+        center, var, _, G = self._moments({name: z}, factor=True)
+        n = z.size
+        return center[:n], np.nan_to_num(G[:n]), ~np.isfinite(var[:n])
+
+    def scalar_factor(self) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
+        """``(names, mean, G, infinite)`` of the learned scalars, in the layout of :meth:`curve_factor`."""
+        names = self.mapping.scalar_names()
+        center, var, _, G = self._moments({}, factor=True)
+        return list(names), center, np.nan_to_num(G), ~np.isfinite(var)
+
     def scalar_stats(self) -> dict[str, Any]:
         """Mean, sd and correlations of the gain, the free constants and the scalars (those the fit learned)."""
         names = self.mapping.scalar_names()
