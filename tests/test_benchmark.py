@@ -72,25 +72,28 @@ def test_tiny_benchmark_through_the_cli_writes_csv_and_report_and_resumes(tmp_pa
     # beside the paper's protocol (Savitzky-Golay + equation error), the default protocol (output error)
     afd = pd.read_csv(out / "appendix_f_default.csv")
     assert len(afd) == 8 and set(afd["noise_on"]) == {"state"}
-    # a rerun skips every finished job: no duplicate rows, identical numbers
-    before = csv.copy()
-    assert _bench(out) == 0
-    again = pd.read_csv(out / "results.csv")
-    assert len(again) == 8
-    pd.testing.assert_frame_equal(again.sort_values(REQUIRED[:4]).reset_index(drop=True),
-                                  before.sort_values(REQUIRED[:4]).reset_index(drop=True))
+    before = csv.sort_values(REQUIRED[:4]).reset_index(drop=True)
     with ResultsStore(out / "results.sqlite") as st:
         assert len(st) == 8
         # a job whose worker died is a failed row: reported, kept on a plain rerun, redone on --retry-failed
         row = next(r for r in st.rows() if r["method"] == "poly-cc" and r["snr_db"] == 10.0)
         st.write({**row, "status": "failed", "error": "worker process died (test)", "rmse_f1": None})
+    # a rerun skips every finished job (no duplicate rows, identical numbers) and keeps the failed one
     assert _bench(out) == 0
-    csv = pd.read_csv(out / "results.csv")
-    assert (csv["status"] == "failed").sum() == 1
+    again = pd.read_csv(out / "results.csv").sort_values(REQUIRED[:4]).reset_index(drop=True)
+    assert len(again) == 8
+    failed = again["status"] == "failed"
+    assert failed.sum() == 1 and again[failed].iloc[0][REQUIRED[:4]].tolist() == [
+        "duffing", "poly-cc", 10.0, row["realization"]]
+    assert again[~failed]["error"].isna().all()  # the failed row's text makes the column a string one
+    pd.testing.assert_frame_equal(again[~failed].drop(columns="error"), before[~failed].drop(columns="error"))
     assert "worker process died (test)" in (out / "report.md").read_text(encoding="utf-8")
     assert _bench(out, "--retry-failed") == 0
     csv = pd.read_csv(out / "results.csv")
     assert len(csv) == 8 and set(csv["status"]) == {"ok"}
+    # the redone job gives the numbers of the first run (seeded)
+    pd.testing.assert_frame_equal(csv.sort_values(REQUIRED[:4]).reset_index(drop=True)[REQUIRED],
+                                  before[REQUIRED])
 
 
 def test_noise_on_state_runs_appendix_f_alone_with_both_protocols(tmp_path, capsys):
