@@ -161,10 +161,15 @@ def test_cli_bad_bands_options_exit_2_before_fitting(tmp_path, capsys, args, mes
 
 
 @pytest.mark.slow
-def test_nn_cc_bootstrap_bands_cover_the_duffing_curves():
+def test_nn_cc_bootstrap_bands_cover_the_duffing_curves_on_average():
+    # The bootstrap captures the noise, not a network's bias (docs/selection.md): on one record a curve whose
+    # systematic error exceeds the members' spread is under-covered. Measured (noise seeds 0-3, f1 / f2):
+    # 0.72 / 1.00, 0.975 / 1.00, 1.00 / 0.65, 1.00 / 1.00, means 0.92 / 0.91; a one-sigma band (level 0.6827)
+    # of the same records' ensembles fitted together (fit_ensembles) covers 0.70 / 0.37 on average (0.93 / 1.00
+    # at 0.95), so the bound below fails a band of the wrong width.
     system = get_system("duffing")
-    rec = corrupt(system.simulate(), 20, seed=0)
-    ens = fit_ensemble(CharacteristicCurves.from_method(method="nn-cc"), rec, 8)
-    cov = band_coverage(curve_bands(ens, level=0.95), system.true_curves())
-    # measured on seed 0: f1 1.0, f2 0.95 (over seeds 0-3 the mean is 0.89 for f1 and 0.97 for f2)
-    assert cov["f1"] >= 0.9 and cov["f2"] >= 0.9
+    clean, truth = system.simulate(), system.true_curves()
+    covers = [band_coverage(curve_bands(fit_ensemble(CharacteristicCurves.from_method(method="nn-cc"),
+                                                     corrupt(clean, 20, seed=seed), 8), level=0.95), truth)
+              for seed in range(4)]
+    assert np.mean([c["f1"] for c in covers]) >= 0.85 and np.mean([c["f2"] for c in covers]) >= 0.85

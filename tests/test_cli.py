@@ -157,14 +157,11 @@ def test_module_entry_point_and_no_work_at_import(tmp_path):
 
 
 @pytest.mark.slow
-def test_demo_runs_under_a_minute(tmp_path):
-    import time
-
-    t0 = time.perf_counter()
+def test_demo_writes_its_summary_result_and_figure(tmp_path):
+    # how long it takes is measured by benchmarks/bench_demo.py, not asserted here
     r = subprocess.run([sys.executable, "-m", "charcurves", "demo", "--out", str(tmp_path)],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
-    assert time.perf_counter() - t0 < 60
     assert "RMSE vs truth" in r.stdout
     assert (tmp_path / "result.json").exists() and (tmp_path / "curves.png").exists()
 

@@ -1,4 +1,5 @@
-"""The headline tables of docs/benchmark.md, measured-records.md, training-defaults.md and silverbox.md are the ones the committed results give (issue 49, item 5):
+"""The headline tables of docs/benchmark.md, measured-records.md, training-defaults.md, silverbox.md and
+differentiators.md are the ones the committed results give (issue 49, item 5):
 each is written between its ``<!-- table:NAME -->`` markers by ``python benchmarks/render_docs.py``, so a
 rerun updates the page and a typed number that the results do not give fails here."""
 
@@ -20,7 +21,9 @@ PAGES = {"benchmark.md": {"full-duffing", "full-stick-slip", "scripts-duffing", 
          "measured-records.md": {"state-noise-duffing", "state-noise-stick-slip", "state-noise-families",
                                  "state-noise-cost"},
          "training-defaults.md": {"long-records"},
-         "silverbox.md": {"silverbox-cost"}}
+         "silverbox.md": {"silverbox-cost"},
+         "differentiators.md": {"differentiators-seconds", "differentiators-acceleration", "differentiators-velocity",
+                                "differentiators-fits", "differentiators-references"}}
 
 
 @pytest.fixture(scope="module")
@@ -68,6 +71,33 @@ def test_the_measured_records_tables_show_the_committed_values(tables):
     assert long[4].startswith("| 1 000 000 | 44.3 s | 11.0× | 1353 MiB | 2.47e-5 | 4.52e-5 |")
     assert long[5].startswith("| 1 000, the paper's protocol | 230 s | 57× |")
     assert tables["silverbox-cost"].splitlines()[2] == "| 88.8 s | 1314 MiB | 6.8 s | 69.5 s | 0.9 s | 6.5 s |"
+
+
+def test_the_differentiator_tables_show_the_committed_values(tables):
+    # the means over 5 seeds of bench_differentiators.py's summary, as differentiators.txt prints them
+    acc = tables["differentiators-acceleration"].splitlines()
+    assert acc[4] == ("| Duffing 20 dB | 0.493 [0.548] | 0.254 [0.390] | 0.243 [0.275] | **0.200** [0.241] "
+                      "| 0.221 [**0.226**] | 0.273 [0.288] | 58.0 [62.6] |")
+    assert tables["differentiators-velocity"].splitlines()[2].startswith(
+        "| Duffing 40 dB | 0.023 [0.023] | 0.019 [0.023] | 0.018 [0.019] | **0.014 [0.015]** |")
+    fits = tables["differentiators-fits"].splitlines()
+    assert fits[2] == "| Duffing 40 dB | nn-cc+sym | 5.18e-2 | 1.10e-1 | 1.38e-2 | 8.28e-3 | **6.99e-3** | 1.69e-2 |"
+    assert fits[3] == "|  | parametric | 4.22e-2 | 5.29e-3 | 3.34e-3 | 2.16e-3 | **2.12e-3** | 7.00e-3 |"
+    assert len(fits) == 2 + 18 + 2 and fits[-1] == "No fit failed (of 540)."
+    assert "| stick-slip 40 dB | 6.91e-1 | 2.17e-3 | 0.2 | 5.1 |" in tables["differentiators-references"]
+    assert "| `tvr` | 1.6–4.5 |" in tables["differentiators-seconds"]
+
+
+def test_a_failed_differentiator_fit_is_counted_on_its_table(tmp_path):
+    cell = {"worst_mean": 0.02, "n": 5, "failed": 0}
+    summary = {"derivatives": {}, "references": {},
+               "fits": {"duffing 40 dB": {"parametric | equation-error | kalman": cell,
+                                          "parametric | equation-error | tvr": dict(cell, worst_mean=0.01, failed=2)}}}
+    (tmp_path / "differentiators.json").write_text(json.dumps({"settings": {"seeds": 5}, "summary": summary}))
+    tables = docs_tables(tmp_path)
+    assert set(tables) == {"differentiators-fits"}
+    assert tables["differentiators-fits"].splitlines()[2:] == [
+        "| Duffing 40 dB | parametric | 2.00e-2 | **1.00e-2** |", "", "2 fits failed (of 10)."]
 
 
 def test_a_folder_with_one_benchmark_file_gives_its_tables_alone(tmp_path):

@@ -174,16 +174,34 @@ def test_lyapunov_of_chaotic_duffing_is_positive(duffing):
     assert 0.07 < lam < 0.15
 
 
+def test_lyapunov_variational_agrees_with_two_trajectories_along_the_same_trajectory():
+    # Over 100 time units after the same transient both runs follow one trajectory (they part after ~150: a
+    # Lyapunov time is ~9), so the variational exponent and the two-trajectory one measure the same finite-time
+    # growth. Measured: 0.14775 and 0.14813 (4e-4 apart); a wrong tangent equation is off by far more.
+    from charcurves.systems import get_system
+
+    paper = get_system("duffing")
+    lam = largest_lyapunov_exponent(paper.f1, paper.f2, paper.forcing, 0.5, -0.5, t_transient=50.0, t_total=100.0,
+                                    rtol=1e-10, atol=1e-12)
+    assert lam == pytest.approx(_two_trajectory_exponent(paper, 100), abs=2e-3)
+    assert lam == pytest.approx(0.148, abs=2e-3)
+
+
 @pytest.mark.slow
-def test_lyapunov_variational_agrees_with_two_trajectories_and_the_papers_value():
+def test_lyapunov_over_5000_time_units_and_the_papers_value():
+    # Over 5000 time units the two estimators follow different trajectories (the chaos parts them), so each is
+    # one finite-time sample of the exponent: measured 0.1139 (variational, today), 0.1181 (the same call in
+    # benchmarks/results/full/extras.json, before bit-level changes of the integration) and 0.1019 (two
+    # trajectories). Requiring them within 0.01 of each other was a one-sigma test; the same-trajectory check
+    # above tests the tangent equations, and here both must lie in the spread of 5000-unit samples.
     from charcurves.systems import get_system
 
     paper = get_system("duffing")
     lam = largest_lyapunov_exponent(paper.f1, paper.f2, paper.forcing, 0.5, -0.5, t_total=5000)
     two = _two_trajectory_exponent(paper, 5000)
-    assert lam == pytest.approx(two, abs=0.01)
-    assert lam == pytest.approx(0.103, abs=0.01)  # alpha = -1, beta = 1: T_L ~ 9.7
+    assert 0.095 < lam < 0.125 and 0.095 < two < 0.125  # alpha = -1, beta = 1: T_L 8-10.5
     # the paper's T_L = 7.8 (lambda = 0.13) is the authors' scripts' Duffing, alpha = -1.05, beta = 1.02
+    # (measured 0.1293, benchmarks/results/scripts-duffing/extras.json)
     scripts = get_system("duffing", "scripts")
     lam_s = largest_lyapunov_exponent(scripts.f1, scripts.f2, scripts.forcing, 0.5, -0.5, t_total=5000)
     assert lam_s == pytest.approx(0.128, abs=0.01)

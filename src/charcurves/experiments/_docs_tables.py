@@ -19,6 +19,7 @@ from collections.abc import Mapping
 
 from . import _paper_values as paper
 from ._appendix_f import _a_rows, protocol_frames
+from ._differentiator_tables import differentiator_tables
 from ._records_tables import records_tables
 from ._report_inputs import committed_csv, read_results_csv
 from ._tables import BIAS_LIMITED, a_fit_table, performance_table, tsep_failure_snr
@@ -144,7 +145,8 @@ def docs_tables(results_root: str | os.PathLike) -> dict[str, str]:
     preset against the default) and ``appendix-f`` (noise on x, both protocols); and those of the measured-records,
     training-defaults and Silverbox pages from ``state_noise.json`` and ``long_records.json``
     (``state-noise-duffing``, ``state-noise-stick-slip``, ``state-noise-families``, ``state-noise-cost``,
-    ``long-records``, ``silverbox-cost``).
+    ``long-records``, ``silverbox-cost``) and those of the differentiators page from ``differentiators.json``
+    (``differentiators-seconds``, ``-acceleration``, ``-velocity``, ``-fits``, ``-references``).
 
     Examples
     --------
@@ -175,6 +177,7 @@ def docs_tables(results_root: str | os.PathLike) -> dict[str, str]:
         if protocols:
             out["appendix-f"] = appendix_f_table(protocols)
     out.update(records_tables(root))
+    out.update(differentiator_tables(root))
     return out
 
 
