@@ -24,6 +24,7 @@ from ..model import finish_model
 from ..train import RELEVANCE_LABEL, get_preset, train
 from ._objectives import OutputError
 from ._records import common_step, record_segments
+from ._revive import revive_pruned_networks
 
 __all__ = ["free_run_diagnostics", "output_error_fit", "refine_output_error", "choose_substeps",
            "choose_segment_length", "slow_template"]
@@ -157,11 +158,15 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     T = lambda a: torch.as_tensor(np.asarray(a, dtype=float), dtype=dtype)  # noqa: E731
     col = lambda v: torch.full((M, 1), float(v), dtype=dtype)  # noqa: E731
     blocks, parts = [], []
-    restore = {}
+    restore, revived = {}, {}
     for name in template.curve_names:
         rf = refits[name]
         theta_c = np.repeat(rf.theta, M // rf.theta.shape[0] + 1, axis=0)[:M] if rf.theta.shape[0] != M else rf.theta
         theta_c = np.array(theta_c, dtype=float)
+        # a network equation error pruned restarts small (._revive): output error cannot reopen it alone
+        theta_c, back = revive_pruned_networks(rf.param, theta_c, _seed(model) * 7919 + len(blocks))
+        if back.any():
+            revived[name] = int(back.sum())
         frozen = []
         sl = rf.param.slices() if hasattr(rf.param, "slices") else {}
         if "jump_log_eps" in sl:  # train with a width RK4 integrates; the sharp one comes back afterwards
@@ -246,6 +251,7 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
         "substeps": substeps, "continuity": float(settings.continuity), "members": int(members.size),
         "iterations": log.lm_iterations, "max_iter": max_iter, "stopped_by": log.stopped_by,
         "evidence_sweeps_undone": log.sweeps_undone,
+        "networks_revived": revived,
         "damping": "nielsen" if slow else "fixed factors",
         "segmented_rmse_before": seg_before, "segmented_rmse_after": seg_after,
         "loss_before": float(loss0.double().min()), "loss_after": float(loss[best]),
@@ -448,6 +454,12 @@ def _smooth_jump_raw(rf, substeps, dt) -> float:
     h = dt / substeps
     eps_data = max(mu * h / 2.0, 2e-3 * rf.half_width)
     return math.log(max(eps_data / rf.half_width, 1e-7))
+
+
+def _seed(model) -> int:
+    """The fit's seed (the revived networks' initialisation draws from it)."""
+    seed = model.info.get("seed", 0)
+    return int(seed) if isinstance(seed, (int, np.integer)) else 0
 
 
 def _kept(model, report: dict, status: str):
