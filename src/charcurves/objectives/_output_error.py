@@ -164,7 +164,7 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
         theta_c = np.repeat(rf.theta, M // rf.theta.shape[0] + 1, axis=0)[:M] if rf.theta.shape[0] != M else rf.theta
         theta_c = np.array(theta_c, dtype=float)
         # a network equation error pruned restarts small (._revive): output error cannot reopen it alone
-        theta_c, back = revive_pruned_networks(rf.param, theta_c, _seed(model) * 7919 + len(blocks))
+        theta_c, back = revive_pruned_networks(rf.param, theta_c, _seed(model) * 7919 + template.curve_names.index(name))
         if back.any():
             revived[name] = int(back.sum())
         frozen = []
