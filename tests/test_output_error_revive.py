@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import charcurves as cc
-from charcurves.curves import NeuralCurve, NeuralFittedCurve
+from charcurves.curves import NeuralCurve, NeuralFittedCurve, jump_log_eps
 from charcurves.fitting import OutputError, get_preset, output_error_fit, raw_fit
 from charcurves.objectives import _revive
 from charcurves.objectives._revive import REVIVE_SCALE, network_spread, revive_pruned_networks
@@ -76,3 +76,22 @@ def test_without_the_revival_the_pruned_network_stays_off_the_noise(pruned_sinh,
     oe, sigma = _refit(pruned_sinh)
     assert oe["networks_revived"] == {}
     assert oe["segmented_rmse_after"] > 2 * sigma, oe["segmented_rmse_after"] / sigma
+
+
+def test_a_smooth_jump_keeps_the_width_equation_error_found():
+    """tanh friction (width 1/3 of a unit velocity) fitted with a learned jump: output error trains
+    it at the width equation error profiled and hands that width back, not Coulomb's sign."""
+    system = CurveSystem("separable", {"f1": lambda v: 0.1 * v + 0.5 * np.tanh(3 * v), "f2": lambda x: x},
+                         forcing=[(1.2, 1.1), (0.6, 2.1)], initial=(0.0, 0.0))
+    measured = cc.corrupt(system.simulate(t_end=40.0, n_points=600), 40, on="state", seed=0)
+    preset = get_preset("default").replace(n_starts=1, powers=(), harmonics=())
+    est = cc.CharacteristicCurves.from_method(method="nn-cc", preset=preset, jump=["f1"], random_state=0, threads=1)
+    [model], [prepared] = raw_fit(est, [measured])
+    new = output_error_fit(model, prepared, measured, OutputError(segment_length=32, substeps=2, max_iter=10),
+                           preset=preset)
+    assert new.info["output_error"]["status"] == "ok"
+    sl = model.curves["f1"].spec.slices()["jump_log_eps"]
+    eps_ee = float(np.exp(jump_log_eps(model.curves["f1"].theta[0, sl]))[0])
+    eps_oe = float(np.exp(jump_log_eps(new.curves["f1"].theta[0, sl]))[0])
+    assert eps_ee > 0.01  # in units of the scaled velocity: a smooth saturation, far above RK4's floor
+    assert eps_oe == eps_ee

@@ -122,7 +122,7 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     """
     import torch
 
-    from ..curves import trainable
+    from ..curves import jump_log_eps, trainable
     from ..templates import ForwardModel, record_columns
     from ._shooting import CurveBlock, ShootingProblem
 
@@ -169,10 +169,14 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
             revived[name] = int(back.sum())
         frozen = []
         sl = rf.param.slices() if hasattr(rf.param, "slices") else {}
-        if "jump_log_eps" in sl:  # train with a width RK4 integrates; the sharp one comes back afterwards
+        if "jump_log_eps" in sl:  # train with a width RK4 integrates; the learned one comes back afterwards
             j = sl["jump_log_eps"].start
-            restore[name] = np.full(theta_c.shape[0], -60.0)  # afterwards: the sharp step (Coulomb's sign)
-            theta_c[:, j] = _smooth_jump_raw(rf, substeps, dt)
+            floor = _smooth_jump_raw(rf, substeps, dt)
+            # a width equation error profiled above RK4's floor is a smooth saturation (tanh friction):
+            # kept through and after output error; a narrower one is Coulomb's sign, trained at the floor
+            smooth = np.asarray(jump_log_eps(theta_c[:, j])) > floor
+            restore[name] = np.where(smooth, theta_c[:, j], -60.0)
+            theta_c[:, j] = np.where(smooth, theta_c[:, j], floor)
             frozen.append(j)
         param = rf.param if rf.param.decay_groups() or not settings.bayesian else _Ridge(rf.param)
         blocks.append(CurveBlock(name, param, col(rf.center), col(rf.half_width), col(rf.out_scale), col(rf.shift),
@@ -213,7 +217,7 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
     theta, log = train(problem, theta0, adam_steps=0, adam_lr=0.0, lm_max_iter=max_iter,
                        lm_tol=float(settings.tol), stop_loss=0.0, progress=progress, lm_window=STOP_WINDOW,
                        lm_deadline=time.monotonic() + float(settings.time_budget) - (time.perf_counter() - started),
-                       lm_nielsen=slow, evidence_sweeps=EVIDENCE_SWEEPS)
+                       lm_nielsen=True, evidence_sweeps=EVIDENCE_SWEEPS)
     with torch.no_grad():
         # members are compared by their fit to the record (the data rows), not by their decay rows
         loss = problem.residuals(theta)[:, :problem.n_data].pow(2).sum(dim=1).double().numpy()
@@ -252,7 +256,7 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
         "iterations": log.lm_iterations, "max_iter": max_iter, "stopped_by": log.stopped_by,
         "evidence_sweeps_undone": log.sweeps_undone,
         "networks_revived": revived,
-        "damping": "nielsen" if slow else "fixed factors",
+        "damping": "nielsen",
         "segmented_rmse_before": seg_before, "segmented_rmse_after": seg_after,
         "loss_before": float(loss0.double().min()), "loss_after": float(loss[best]),
         "member_selection": "AIC within 2 (Bayesian effective parameters)" if crit is not None else
@@ -292,7 +296,7 @@ def output_error_fit(model, prepared, measured, settings: OutputError, *, preset
 def slow_template(fm) -> bool:
     """True when a curve of the template is multiplied by a state (van der Pol's ``f1(x) x'``, the
     first-order family's ``f2(x) x'``) or the template couples several equations (two-DOF): there
-    the output-error fit converges slowly, and gets more iterations and Nielsen's damping (see
+    the output-error fit converges slowly, and gets more iterations (every template gets Nielsen's damping; see
     :class:`OutputError`; docs/measured-records.md has the measurements)."""
     if fm.divides or len(fm.equations) > 1:  # divides: a curve is a factor of the highest derivative
         return True
