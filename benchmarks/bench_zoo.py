@@ -195,6 +195,9 @@ def run_job(job) -> dict:
         oe = info.get("output_error")
         if isinstance(oe, dict):
             row["oe_status"] = oe.get("status")
+            row["oe_iterations"] = oe.get("iterations")
+            if oe.get("networks_revived"):  # networks equation error pruned, reopened by output error
+                row["oe_networks_revived"] = oe["networks_revived"]
         sym = info.get("symmetry")
         if sym is not None:
             row["symmetry"] = sym if isinstance(sym, (str, dict)) else str(sym)

@@ -23,6 +23,7 @@ from .._errors import ConfigError, DataError
 from ..model import finish_model
 from ..train import RELEVANCE_LABEL, train
 from ._records import common_step, record_segments
+from ._revive import revive_pruned_networks
 
 __all__ = ["free_run_diagnostics", "output_error_fit", "choose_substeps",
            "choose_segment_length", "slow_template"]
@@ -120,7 +121,7 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
     """
     import torch
 
-    from ..curves import trainable
+    from ..curves import jump_log_eps, trainable
     from ..templates import ForwardModel, record_columns
     from ._shooting import CurveBlock, ShootingProblem
 
@@ -156,17 +157,25 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
     T = lambda a: torch.as_tensor(np.asarray(a, dtype=float), dtype=dtype)  # noqa: E731
     col = lambda v: torch.full((M, 1), float(v), dtype=dtype)  # noqa: E731
     blocks, parts = [], []
-    restore = {}
+    restore, revived = {}, {}
     for name in template.curve_names:
         rf = refits[name]
         theta_c = np.repeat(rf.theta, M // rf.theta.shape[0] + 1, axis=0)[:M] if rf.theta.shape[0] != M else rf.theta
         theta_c = np.array(theta_c, dtype=float)
+        # a network equation error pruned restarts small (._revive): output error cannot reopen it alone
+        theta_c, back = revive_pruned_networks(rf.param, theta_c, _seed(model) * 7919 + template.curve_names.index(name))
+        if back.any():
+            revived[name] = int(back.sum())
         frozen = []
         sl = rf.param.slices() if hasattr(rf.param, "slices") else {}
-        if "jump_log_eps" in sl:  # train with a width RK4 integrates; the sharp one comes back afterwards
+        if "jump_log_eps" in sl:  # train with a width RK4 integrates; the learned one comes back afterwards
             j = sl["jump_log_eps"].start
-            restore[name] = np.full(theta_c.shape[0], -60.0)  # afterwards: the sharp step (Coulomb's sign)
-            theta_c[:, j] = _smooth_jump_raw(rf, substeps, dt)
+            floor = _smooth_jump_raw(rf, substeps, dt)
+            # a width equation error profiled above RK4's floor is a smooth saturation (tanh friction):
+            # kept through and after output error; a narrower one is Coulomb's sign, trained at the floor
+            smooth = np.asarray(jump_log_eps(theta_c[:, j])) > floor
+            restore[name] = np.where(smooth, theta_c[:, j], -60.0)
+            theta_c[:, j] = np.where(smooth, theta_c[:, j], floor)
             frozen.append(j)
         param = rf.param if rf.param.decay_groups() or not settings.bayesian else _Ridge(rf.param)
         blocks.append(CurveBlock(name, param, col(rf.center), col(rf.half_width), col(rf.out_scale), col(rf.shift),
@@ -207,7 +216,7 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
     theta, log = train(problem, theta0, adam_steps=0, adam_lr=0.0, lm_max_iter=max_iter,
                        lm_tol=float(settings.tol), stop_loss=0.0, progress=progress, lm_window=STOP_WINDOW,
                        lm_deadline=time.monotonic() + float(settings.time_budget) - (time.perf_counter() - started),
-                       lm_nielsen=slow, evidence_sweeps=EVIDENCE_SWEEPS)
+                       lm_nielsen=True, evidence_sweeps=EVIDENCE_SWEEPS)
     with torch.no_grad():
         # members are compared by their fit to the record (the data rows), not by their decay rows
         loss = problem.residuals(theta)[:, :problem.n_data].pow(2).sum(dim=1).double().numpy()
@@ -245,7 +254,8 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
         "substeps": substeps, "continuity": float(settings.continuity), "members": int(members.size),
         "iterations": log.lm_iterations, "max_iter": max_iter, "stopped_by": log.stopped_by,
         "evidence_sweeps_undone": log.sweeps_undone,
-        "damping": "nielsen" if slow else "fixed factors",
+        "networks_revived": revived,
+        "damping": "nielsen",
         "segmented_rmse_before": seg_before, "segmented_rmse_after": seg_after,
         "loss_before": float(loss0.double().min()), "loss_after": float(loss[best]),
         "member_selection": "AIC within 2 (Bayesian effective parameters)" if crit is not None else
@@ -296,7 +306,7 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
 def slow_template(fm) -> bool:
     """True when a curve of the template is multiplied by a state (van der Pol's ``f1(x) x'``, the
     first-order family's ``f2(x) x'``) or the template couples several equations (two-DOF): there
-    the output-error fit converges slowly, and gets more iterations and Nielsen's damping (see
+    the output-error fit converges slowly, and gets more iterations (every template gets Nielsen's damping; see
     :class:`OutputError`; docs/measured-records.md has the measurements)."""
     if fm.divides or len(fm.equations) > 1:  # divides: a curve is a factor of the highest derivative
         return True
@@ -458,6 +468,12 @@ def _smooth_jump_raw(rf, substeps, dt) -> float:
     h = dt / substeps
     eps_data = max(mu * h / 2.0, 2e-3 * rf.half_width)
     return math.log(max(eps_data / rf.half_width, 1e-7))
+
+
+def _seed(model) -> int:
+    """The fit's seed (the revived networks' initialisation draws from it)."""
+    seed = model.info.get("seed", 0)
+    return int(seed) if isinstance(seed, (int, np.integer)) else 0
 
 
 def _kept(model, report: dict, status: str):
