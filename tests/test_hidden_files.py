@@ -227,3 +227,34 @@ def test_a_scalar_that_carries_a_hidden_offset_is_found():
     assert analysis.freedoms == (
         "the offset of hidden x1 moves the constants of f2 and the argument of f1; fixed by f2(0) = 0",)
     assert analysis.anchored == ("f2",) and not analysis.gain_fixed
+
+
+# ---------------------------------------------------------------------- linear continuation
+@pytest.mark.parametrize("basis", ["power", "chebyshev"])
+def test_a_continued_polynomial_is_the_polynomial_inside_and_its_tangent_outside(basis):
+    import torch
+
+    from charcurves.curves import ContinuedPolynomial, Polynomial
+
+    plain, continued = Polynomial(degree=5, basis=basis), ContinuedPolynomial(degree=5, basis=basis)
+    inside = torch.linspace(-1.0, 1.0, 9, dtype=torch.float64)
+    assert torch.equal(continued.features(inside), plain.features(inside))
+    s = torch.tensor([-3.0, 2.5], dtype=torch.float64)
+    end = torch.tensor([-1.0, 1.0], dtype=torch.float64)
+    tangent = plain.features(end) + (s - end)[:, None] * plain.feature_derivatives(end)
+    assert torch.allclose(continued.features(s), tangent, rtol=0, atol=1e-12)
+    assert torch.equal(continued.feature_derivatives(s), plain.feature_derivatives(end))
+    assert continued.monomial_powers() is None  # no fast path that would evaluate plain powers
+
+
+def test_hidden_fit_curves_continue_as_lines_past_their_range(tmp_path):
+    import charcurves as cc
+
+    _, model = _tank_fit()
+    f1 = model.curves["f1"]
+    assert type(f1.representation).__name__ == "ContinuedPolynomial"
+    lo, hi = f1.domain
+    z = hi + np.array([1.0, 2.0, 3.0]) * (hi - lo)
+    assert abs(np.diff(f1(z), 2)[0]) < 1e-9 * max(1.0, float(np.max(np.abs(f1(z)))))
+    model.save(tmp_path / "m")
+    assert np.array_equal(cc.load_model(tmp_path / "m").curves["f1"](z), f1(z))

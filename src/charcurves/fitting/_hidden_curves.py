@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._errors import ConfigError
-from ..curves import LinearCurve, Polynomial
+from ..curves import ContinuedPolynomial, LinearCurve, Polynomial
 
 __all__: list[str] = []
 
@@ -50,7 +50,7 @@ class _Curve:
             theta, constant = theta[1:], float(theta[0])
         rep = self.rep
         if isinstance(rep, _Anchored):  # the same basis; a model file names a registered class
-            rep = Polynomial(**rep.get_params())
+            rep = ContinuedPolynomial(**rep.get_params())
         return LinearFittedCurve(self.name, self.argument, (float(lo), float(hi)), rep, theta,
                                  float(self.center[b]), float(self.half[b]), constant)
 
@@ -96,13 +96,13 @@ class _WithConstant(LinearCurve):
 
 
 def _representations(template, structure, degree):
-    from ..curves import LinearCurve, Polynomial
-
     out = {}
     for name in structure.curve_names:
         rep = getattr(template, name, None)
         if rep is None:
             rep = Polynomial(degree=int(degree), basis="power")
+        if type(rep) is Polynomial:  # a free run past the fitted range continues the curve's tangent
+            rep = ContinuedPolynomial(**rep.get_params())
         if not isinstance(rep, LinearCurve):
             raise ConfigError(f"{name}: hidden-state fits take curves linear in their parameters (Polynomial, Basis, "
                               f"SparseLibrary), not {type(rep).__name__}; give {name}=Polynomial(degree=6)")
@@ -114,7 +114,7 @@ def _pinned(degree):
     return _Anchored(degree=int(degree), basis="power")
 
 
-class _Anchored(Polynomial):
+class _Anchored(ContinuedPolynomial):
     """A polynomial without its constant: ``f(0) = 0`` (the argument is centred at 0)."""
 
     @property
