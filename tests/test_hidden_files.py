@@ -258,3 +258,18 @@ def test_hidden_fit_curves_continue_as_lines_past_their_range(tmp_path):
     assert abs(np.diff(f1(z), 2)[0]) < 1e-9 * max(1.0, float(np.max(np.abs(f1(z)))))
     model.save(tmp_path / "m")
     assert np.array_equal(cc.load_model(tmp_path / "m").curves["f1"](z), f1(z))
+
+
+def test_a_state_space_model_file_without_its_measured_map_is_refused_in_one_line(tmp_path):
+    import charcurves as cc
+
+    _, model = _tank_fit()
+    model.save(tmp_path / "m")
+    path = tmp_path / "m" / "model.json"
+    doc = json.loads(path.read_text())
+    del doc["template"]["measured"]
+    path.write_text(json.dumps(doc))
+    with pytest.raises(cc.ModelFileError) as info:
+        cc.load_model(tmp_path / "m")
+    assert str(info.value) == (f"{str(path)!r} is incomplete or corrupted (KeyError: 'measured'); re-save or re-fit "
+                               "the model")
