@@ -245,6 +245,12 @@ def test_a_continued_polynomial_is_the_polynomial_inside_and_its_tangent_outside
     assert torch.allclose(continued.features(s), tangent, rtol=0, atol=1e-12)
     assert torch.equal(continued.feature_derivatives(s), plain.feature_derivatives(end))
     assert continued.monomial_powers() is None  # no fast path that would evaluate plain powers
+    from charcurves.curves import LinearParametrisation
+
+    param = LinearParametrisation(continued)  # the free run's evaluator: the same values
+    theta = torch.tensor([[0.5, -1.0, 2.0, 0.3, -0.7], [1.0, 0.0, -2.0, 0.1, 0.4]], dtype=torch.float64)
+    u = torch.linspace(-3.0, 3.0, 13, dtype=torch.float64).expand(2, -1)
+    assert torch.allclose(param.evaluator(theta)(u), param.evaluate(theta, u), rtol=0, atol=1e-12)
 
 
 def test_hidden_fit_curves_continue_as_lines_past_their_range(tmp_path):

@@ -35,13 +35,41 @@ class ContinuedPolynomial(Polynomial):
     def monomial_powers(self):
         return None  # not plain powers outside [-1, 1]: no fast path
 
+    def evaluator(self, theta):
+        """``s -> values`` at fixed coefficients ``theta`` (``(K, p)``; ``s``: ``(K, N)``): the polynomial
+        at ``clip(s)`` plus the end slopes times the overshoot (the free run's per-stage form)."""
+        import torch
+
+        col = theta.unsqueeze(-1)  # (K, p, 1)
+        if self.basis_name != "power":
+            return lambda s: torch.bmm(self.features(s), col).squeeze(-1)
+        pw = torch.tensor(self.powers(), dtype=theta.dtype, device=theta.device)
+        ends = torch.tensor([-1.0, 1.0], dtype=theta.dtype, device=theta.device)
+        slopes = (pw * ends.unsqueeze(-1).pow(torch.clamp(pw - 1, min=0))) @ theta.T  # (2, K): p'(-1), p'(1)
+        low, high = slopes[0].unsqueeze(-1), slopes[1].unsqueeze(-1)
+
+        def f(s):
+            inside = torch.clamp(s, -1.0, 1.0)
+            value = torch.bmm(inside.unsqueeze(-1).pow(pw), col).squeeze(-1)
+            return value + torch.clamp(s - 1.0, min=0.0) * high - torch.clamp(-1.0 - s, min=0.0) * low
+
+        return f
+
     def features(self, u):
         import torch
 
         inside = torch.clamp(u, -1.0, 1.0)
+        if self.basis_name == "power":  # all powers at once (the free run evaluates this per RK4 stage)
+            pw = torch.tensor(self.powers(), dtype=u.dtype, device=u.device)
+            c = inside.unsqueeze(-1)
+            return c.pow(pw) + (u - inside).unsqueeze(-1) * (pw * c.pow(torch.clamp(pw - 1, min=0)))
         return super().features(inside) + (u - inside).unsqueeze(-1) * super().feature_derivatives(inside)
 
     def feature_derivatives(self, u):
         import torch
 
-        return super().feature_derivatives(torch.clamp(u, -1.0, 1.0))
+        inside = torch.clamp(u, -1.0, 1.0)
+        if self.basis_name == "power":
+            pw = torch.tensor(self.powers(), dtype=u.dtype, device=u.device)
+            return pw * inside.unsqueeze(-1).pow(torch.clamp(pw - 1, min=0))
+        return super().feature_derivatives(inside)
