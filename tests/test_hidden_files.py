@@ -256,9 +256,11 @@ def test_a_continued_polynomial_is_the_polynomial_inside_and_its_tangent_outside
 def test_hidden_fit_curves_continue_as_lines_past_their_range(tmp_path):
     import charcurves as cc
 
-    _, model = _tank_fit()
+    _, plain = _tank_fit()
+    assert type(plain.curves["f1"].representation).__name__ == "Polynomial"
+    _, model = _tank_fit(extrapolation="linear")
     f1 = model.curves["f1"]
-    assert type(f1.representation).__name__ == "ContinuedPolynomial"
+    assert type(f1.representation).__name__ == "ContinuedPolynomial" and model.info["extrapolation"] == "linear"
     lo, hi = f1.domain
     z = hi + np.array([1.0, 2.0, 3.0]) * (hi - lo)
     assert abs(np.diff(f1(z), 2)[0]) < 1e-9 * max(1.0, float(np.max(np.abs(f1(z)))))

@@ -41,7 +41,8 @@ START_NAMES = ("growing", "linear")
 
 def fit_state_space(template, record, *, start: str = "growing", n_starts: int = 4, seed: int = 0, degree: int = 10,
                     schedule=None, substeps: int | None = None, hold: str = "linear", max_iter: int = 40,
-                    continuity: float = 10.0, time_budget: float = 600.0, progress=None) -> StateSpaceModel:
+                    continuity: float = 10.0, time_budget: float = 600.0, progress=None,
+                    extrapolation: str = "polynomial") -> StateSpaceModel:
     """Fit a :class:`~charcurves.templates.StateSpace` template with hidden states by output error.
 
     Parameters
@@ -67,6 +68,10 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
         Seconds; a stage past it is the last.
     progress : callable, optional
         Called with one line after each stage.
+    extrapolation : {"polynomial", "linear"}
+        ``"linear"``: polynomial curves continue as their tangent line outside the range they were
+        fitted on (:class:`~charcurves.curves.ContinuedPolynomial`), so a free run past that range
+        does not grow like ``s**degree``; about 3x the CPU time (measured on a 300-sample two-tank fit).
 
     Ctrl-C (KeyboardInterrupt) stops the fit and keeps the best model so far: the trainer's best
     weights of the stage it interrupts, or the last finished stage (``info["interrupted"]``); an
@@ -97,13 +102,16 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     from ..templates import ForwardModel
 
     fm = ForwardModel(structure)
-    reps = _representations(template, structure, degree)
+    if extrapolation not in ("polynomial", "linear"):
+        raise ConfigError(f"unknown extrapolation {extrapolation!r}; choose 'polynomial' or 'linear'")
+    continued = extrapolation == "linear"
+    reps = _representations(template, structure, degree, continued)
     analysis = template.analysis({n: bool(r.pinned_at_zero) or n in structure.anchors for n, r in reps.items()},
                                  structure)
     anchored = set(analysis.anchored) | set(structure.anchors)
     for n in anchored:
         if not reps[n].pinned_at_zero:
-            reps[n] = _pinned(degree)
+            reps[n] = _pinned(degree, continued)
     cols, dt = record_table(record, analysis.measured, structure.forces)
     n = len(cols["t"])
     if n < 16:
@@ -161,7 +169,7 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     best = int(np.argmin(np.where(finite, loss, np.inf)))
     curves = {c.name: c.fitted(best) for c in shared}
     x0 = traj[best, 0].copy()
-    info = {"objective": "output-error (hidden states)", "start": start, "n_starts": B, "seed": int(seed),
+    info = {"objective": "output-error (hidden states)", "start": start, "n_starts": B, "seed": int(seed), "extrapolation": extrapolation,
             "best_start": best, "stages": log, "hidden": list(analysis.hidden), "measured": dict(analysis.measured),
             "gauge_freedoms": list(analysis.freedoms),
             "gauge_conditions": [f"{a}(0) = 0" for a in sorted(anchored)]

@@ -49,8 +49,8 @@ class _Curve:
         if _needs_constant(self.rep):
             theta, constant = theta[1:], float(theta[0])
         rep = self.rep
-        if isinstance(rep, _Anchored):  # the same basis; a model file names a registered class
-            rep = ContinuedPolynomial(**rep.get_params())
+        if isinstance(rep, (_Anchored, _AnchoredPlain)):  # the same basis; a model file names a registered class
+            rep = (ContinuedPolynomial if isinstance(rep, _Anchored) else Polynomial)(**rep.get_params())
         return LinearFittedCurve(self.name, self.argument, (float(lo), float(hi)), rep, theta,
                                  float(self.center[b]), float(self.half[b]), constant)
 
@@ -95,13 +95,13 @@ class _WithConstant(LinearCurve):
         return None if powers is None else (0, *powers)
 
 
-def _representations(template, structure, degree):
+def _representations(template, structure, degree, continued: bool = False):
     out = {}
     for name in structure.curve_names:
         rep = getattr(template, name, None)
         if rep is None:
             rep = Polynomial(degree=int(degree), basis="power")
-        if type(rep) is Polynomial:  # a free run past the fitted range continues the curve's tangent
+        if continued and type(rep) is Polynomial:  # a free run past the fitted range continues the tangent
             rep = ContinuedPolynomial(**rep.get_params())
         if not isinstance(rep, LinearCurve):
             raise ConfigError(f"{name}: hidden-state fits take curves linear in their parameters (Polynomial, Basis, "
@@ -110,8 +110,16 @@ def _representations(template, structure, degree):
     return out
 
 
-def _pinned(degree):
-    return _Anchored(degree=int(degree), basis="power")
+def _pinned(degree, continued: bool = False):
+    return (_Anchored if continued else _AnchoredPlain)(degree=int(degree), basis="power")
+
+
+class _AnchoredPlain(Polynomial):
+    """A polynomial without its constant: ``f(0) = 0`` (the argument is centred at 0)."""
+
+    @property
+    def pinned_at_zero(self) -> bool:
+        return True
 
 
 class _Anchored(ContinuedPolynomial):
