@@ -100,7 +100,7 @@ def two_dof_x1(start: str, n_starts: int, seed: int) -> dict:
             "stages": model.info["stages"], "gauges": model.info["gauge_freedoms"]}
 
 
-def bouc_wen(start: str, n_starts: int, seed: int, samples: int) -> dict:
+def bouc_wen(start: str, n_starts: int, seed: int, samples: int, extrapolation: str = "polynomial") -> dict:
     from charcurves.fitting import fit_state_space
     from charcurves.systems import BoucWen
     from charcurves.templates import StateSpace
@@ -111,9 +111,9 @@ def bouc_wen(start: str, n_starts: int, seed: int, samples: int) -> dict:
     template = StateSpace("x1'' + f1(x1') + f2(x1) + x2 = g*F; x2' = f3(x2)*Abs(x1') + f4(x2)*x1'",
                           measured={"x1": "x"})
     t0 = time.perf_counter()
-    model = fit_state_space(template, train, start=start, n_starts=n_starts, seed=seed)
+    model = fit_state_space(template, train, start=start, n_starts=n_starts, seed=seed, extrapolation=extrapolation)
     seconds = time.perf_counter() - t0
-    out = {"case": "bouc-wen", "start": start, "seed": seed, "samples": samples, "seconds": seconds,
+    out = {"case": "bouc-wen", "extrapolation": extrapolation, "start": start, "seed": seed, "samples": samples, "seconds": seconds,
            "gain": model.gain, "free_run_rmse_train": model.info["free_run_rmse"]["x1"],
            "stages": model.info["stages"], "gauges": model.info["gauge_freedoms"]}
     for name, u in tests.items():
@@ -138,6 +138,7 @@ def main(argv=None) -> int:
     p.add_argument("--degree", type=int, default=None, help="curves' polynomial degree (two-tank; default the fit's)")
     p.add_argument("--schedule", default=None, help="segment lengths, e.g. 16,64,256,1000 (two-tank)")
     p.add_argument("--label", default=None, help="a label stored in each row")
+    p.add_argument("--extrapolation", default="polynomial", help="bouc-wen curves past their range: polynomial|linear")
     args = p.parse_args(argv)
     fit = {k: v for k, v in (("degree", args.degree),
                              ("schedule", [int(s) for s in args.schedule.split(",")] if args.schedule else None))
@@ -153,7 +154,7 @@ def main(argv=None) -> int:
                 elif case == "two-dof-x1":
                     row = two_dof_x1(start, args.n_starts, args.seed)
                 elif case == "bouc-wen":
-                    row = bouc_wen(start, args.n_starts, args.seed, args.bw_samples)
+                    row = bouc_wen(start, args.n_starts, args.seed, args.bw_samples, args.extrapolation)
                 else:
                     raise SystemExit(f"unknown case {case!r}")
             except Exception as exc:  # a failure of the library is a result too

@@ -21,7 +21,9 @@ def test_distillable_methods_are_the_methods_with_a_post_sr_variant():
 
 @pytest.mark.parametrize("package", [model, train, objectives])
 def test_fitting_re_exports_the_moved_names_as_the_same_objects(package):
-    shared = sorted(n for n in dir(fitting) if not n.startswith("_") and n in vars(package))
+    # load_model of fitting reads the model layer's files and gives a state-space file its StateSpaceModel
+    # (a fitting object); tests/test_hidden_files.py checks both readers
+    shared = sorted(n for n in dir(fitting) if not n.startswith("_") and n in vars(package) and n != "load_model")
     assert shared, package.__name__
     for name in shared:
         assert getattr(fitting, name) is getattr(package, name), name

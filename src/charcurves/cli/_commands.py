@@ -90,9 +90,12 @@ def cmd_validate(a) -> int:
     from ..simulate import validate_cli
     from ._common import check_out_dir
     from ._fit import time_column
+    from ._hidden import is_hidden_model, validate_hidden
 
     if a.out is not None:
         check_out_dir(a.out)  # before the free runs: a file there must not cost them (it was found after 100 s)
+    if is_hidden_model(a.model):
+        return validate_hidden(a)
     out = validate_cli(a.model, a.csv, rows=a.rows, time_col=time_column(a.time_col), x_col=a.x_col,
                        force_col=a.force_col, sample_rate=a.sample_rate, hold=a.hold, substeps=a.substeps,
                        out_dir=a.out, init_window=a.init_window)

@@ -296,7 +296,7 @@ def cmd_fit(a) -> int:
         from ._hidden import cmd_fit_hidden
 
         a.csv = paths[0]
-        return cmd_fit_hidden(a)
+        return interrupted_exit(cmd_fit_hidden(a), a.out)
     if len(paths) > 1 and a.bands is not None:
         raise UsageError("--bands takes one record; fit several records without --bands")
     records = [read_record(path, family=a.family, equation=a.equation, time_col=time_column(a.time_col), x_col=a.x_col,

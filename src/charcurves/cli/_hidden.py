@@ -1,22 +1,31 @@
-"""``charcurves fit --equation "..." --measured x2=x``: a state-space template with hidden states."""
+"""``charcurves fit --equation "..." --measured x2=x``: a state-space template with hidden states;
+``validate`` of the model it writes."""
 
 from __future__ import annotations
 
 import os
+import sys
 
-__all__ = ["cmd_fit_hidden"]
+__all__ = ["cmd_fit_hidden", "validate_hidden", "is_hidden_model"]
 
 
-def cmd_fit_hidden(a) -> int:
-    """Fit a state-space template whose unmeasured states are hidden (output error from seeded
-    starts); writes result.json (the curves on a grid, the gauges, which start ran) and summary.txt."""
-    import numpy as np
-
+def _read_record(csv, measured, forces, time_col, rows):
     from ..data import MultiTrajectory, Trajectory
+
+    columns = sorted(set(measured.values()))
+    if columns == ["x"] and list(forces) == ["F"]:
+        return Trajectory.from_csv(csv, time_col=time_col or "t", x_col="x", force_col="F", rows=rows)
+    return MultiTrajectory.from_csv(csv, states=columns, forces=forces, time_col=time_col or "t", rows=rows)
+
+
+def cmd_fit_hidden(a):
+    """Fit a state-space template whose unmeasured states are hidden (output error from seeded
+    starts); writes result.json (the curves on a grid, the gauges, which start ran), summary.txt and
+    the model files (model/, read by validate and report). Ctrl-C or SIGTERM keeps the best model
+    so far (``info["interrupted"]``: the caller exits 130). Returns the model."""
     from ..fitting import fit_state_space
-    from ..io import atomic_write_bytes, json_bytes
     from ..templates import StateSpace, parse_measured
-    from ._common import UsageError, make_out_dir, say, warn
+    from ._common import UsageError, check_out_dir, first_interrupt_only, held_out_dir, say, signals_deferred
 
     if not a.equation:
         raise UsageError("--measured needs --equation with the state equations, e.g. --equation \"x1' = g*F - f1(x1); "
@@ -24,14 +33,28 @@ def cmd_fit_hidden(a) -> int:
     measured = parse_measured(a.measured)
     template = StateSpace(a.equation, measured=measured, free_gain=bool(a.free_gain))
     structure = template.structure()
-    columns = sorted(set(measured.values()))
-    record: Trajectory | MultiTrajectory
-    if columns == ["x"] and list(structure.forces) == ["F"]:
-        record = Trajectory.from_csv(a.csv, time_col=a.time_col or "t", x_col="x", force_col="F", rows=a.rows)
-    else:
-        record = MultiTrajectory.from_csv(a.csv, states=columns, forces=structure.forces, time_col=a.time_col or "t",
-                                          rows=a.rows)
-    model = fit_state_space(template, record, start=a.start, seed=int(a.seed or 0))
+    record = _read_record(a.csv, measured, structure.forces, a.time_col, a.rows)
+    check_out_dir(a.out)  # before the fit: a bad --out must not cost a long run
+
+    def progress(line: str) -> None:
+        if not a.quiet:
+            print(f"  [{line}]  (Ctrl-C stops and keeps the best model so far)", file=sys.stderr, flush=True)
+
+    with held_out_dir(a.out), first_interrupt_only():
+        model = fit_state_space(template, record, start=a.start, seed=int(a.seed or 0), progress=progress)
+        with signals_deferred() as late_interrupt:
+            lines = _write(model, template, a.out)
+    say("\n".join(lines), a.quiet)
+    model.info["interrupted_while_writing"] = late_interrupt[0]
+    return model
+
+
+def _write(model, template, out) -> list[str]:
+    import numpy as np
+
+    from ..io import atomic_write_bytes, json_bytes
+    from ._common import make_out_dir, warn
+
     result = model.summary()
     result["curves_on_grid"] = {}
     for name, curve in model.curves.items():
@@ -39,18 +62,72 @@ def cmd_fit_hidden(a) -> int:
         z = np.linspace(float(lo), float(hi), 101)
         result["curves_on_grid"][name] = {"z": z.tolist(), "f": np.asarray(curve(z), dtype=float).tolist()}
     result.pop("seconds", None)  # wall-clock time: timing.json (result.json is what the inputs determine)
+    result.pop("cpu_seconds", None)
     for stage in result.get("stages", []):
         stage.pop("seconds", None)
-    make_out_dir(a.out)
-    atomic_write_bytes(os.path.join(a.out, "result.json"), json_bytes(result))
-    atomic_write_bytes(os.path.join(a.out, "timing.json"), json_bytes({"fit_seconds": model.info["seconds"]}))
+    make_out_dir(out)
+    model.save(os.path.join(out, "model"))
+    atomic_write_bytes(os.path.join(out, "result.json"), json_bytes(result))
+    atomic_write_bytes(os.path.join(out, "timing.json"), json_bytes({"fit_seconds": model.info["seconds"],
+                                                                     "fit_cpu_seconds": model.info["cpu_seconds"]}))
+    scalars = model.info.get("scalars") or {}
     lines = [f"state-space fit, hidden {', '.join(model.info['hidden'])}: {template.written}",
              f"  start: {model.info['start']} ({model.info['n_starts']} seeded starts), gain {model.gain:.6g}",
+             *[f"  scalar {k} = {v:.6g}" for k, v in scalars.items()],
              *[f"  gauge: {g}" for g in model.info["gauge_freedoms"]],
              *[f"  free-run RMSE of {s}: {v:.4g}" for s, v in model.info["free_run_rmse"].items()],
-             f"wrote {os.path.join(a.out, 'result.json')}"]
-    atomic_write_bytes(os.path.join(a.out, "summary.txt"), ("\n".join(lines) + "\n").encode())
+             f"wrote {os.path.join(out, 'result.json')} and the model files in {os.path.join(out, 'model')}"]
+    atomic_write_bytes(os.path.join(out, "summary.txt"), ("\n".join(lines) + "\n").encode())
     for line in model.info.get("warnings", []):
         warn(line)
-    say("\n".join(lines), a.quiet)
+    return lines
+
+
+def is_hidden_model(path) -> bool:
+    """Whether the model folder (or the fit folder holding model/) is a state-space model's."""
+    import json
+
+    folder = path if os.path.isfile(os.path.join(path, "model.json")) else os.path.join(path, "model")
+    try:
+        with open(os.path.join(folder, "model.json"), encoding="utf-8") as fh:
+            doc = json.load(fh)
+        return doc.get("template", {}).get("family") == "state-space"
+    except (OSError, ValueError, AttributeError):
+        return False  # the ordinary reader names the problem
+
+
+def validate_hidden(a) -> int:
+    """``validate`` of a state-space model: one free run of the record's input from the measured
+    states' first samples (hidden states at their fitted initial values); RMSE per measured state."""
+    from ..fitting import load_model
+    from ..io import atomic_write_bytes, json_bytes
+    from ._common import UsageError, say
+
+    if a.init_window is not None:
+        raise UsageError("--init-window is not offered for models with hidden states yet; drop it (the free run "
+                         "starts from the record's first samples and the hidden states' fitted initial values)")
+    folder = a.model if os.path.isfile(os.path.join(a.model, "model.json")) else os.path.join(a.model, "model")
+    model = load_model(folder)
+    if a.rows and len(a.rows) > 1:
+        raise UsageError("--rows once for a model with hidden states (its hidden initial values belong to the "
+                         "record's start); validate one span")
+    record = _read_record(a.csv, model.info["measured"], model.structure.forces, a.time_col,
+                          a.rows[0] if a.rows else None)
+    rmse = model.free_run_rmse(record)
+    lines = [f"free run of {folder} (state-space, hidden {', '.join(model.info['hidden'])}; from the record's first "
+             "samples, hidden states at their fitted initial values)",
+             *[f"  {s}: RMSE {v:.5g}" for s, v in rmse.items()]]
+    failed = [s for s, v in rmse.items() if not v < float("inf")]
+    if a.out is not None:
+        os.makedirs(a.out, exist_ok=True)
+        doc = {"model": folder, "csv": a.csv, "status": "failed" if failed else "ok",
+               "rmse": {s: (v if v < float("inf") else None) for s, v in rmse.items()}}
+        atomic_write_bytes(os.path.join(a.out, "validation.json"), json_bytes(doc))
+        lines.append(f"wrote {os.path.join(a.out, 'validation.json')}")
+    for line in lines:
+        say(line)
+    if failed:
+        print(f"charcurves: validation failed: the free run of {', '.join(failed)} diverges; the model does not "
+              "reproduce the record", file=sys.stderr, flush=True)
+        return 1
     return 0

@@ -1,7 +1,8 @@
 """Curve representations (what a characteristic curve may be) and fitted curves.
 
 Representations (compose them into a template): :class:`Neural`, :class:`Polynomial`,
-:class:`SparseLibrary`, :class:`Basis`, :class:`Symbolic`; the interface they share is
+:class:`SparseLibrary`, :class:`Basis`, :class:`Symbolic` (:class:`ContinuedPolynomial`: linear
+outside its range); the interface they share is
 :class:`AbstractCurve`, and :class:`LinearCurve` is the extension point for user-written
 representations that are linear in their parameters.
 """
@@ -33,6 +34,7 @@ from ._neural import jump_log_eps as jump_log_eps
 from ._polynomial import POLY_BASES as POLY_BASES
 from ._polynomial import RESCALINGS as RESCALINGS
 from ._polynomial import Polynomial as Polynomial
+from ._continued import ContinuedPolynomial as ContinuedPolynomial
 from ._polynomial import build_polynomial_curve as build_polynomial_curve
 from ._polynomial import column_numpy as column_numpy
 from ._polynomial import poly_powers as poly_powers

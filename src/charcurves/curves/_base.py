@@ -263,6 +263,9 @@ class LinearParametrisation:
         done once: the coefficients as a column, monomials as one power of the argument."""
         import torch
 
+        own = getattr(self.curve, "evaluator", None)  # a representation's own fast form (ContinuedPolynomial)
+        if own is not None:
+            return own(theta)
         col = theta.unsqueeze(-1)  # (K, p, 1)
         powers = self.curve.monomial_powers()
         if powers is not None:

@@ -25,6 +25,7 @@ import numpy as np
 
 from .._errors import ConfigError
 from ._base import LinearCurve, normalise_symmetry
+from ._loadable import remember_curve
 
 __all__ = ["Polynomial", "RESCALINGS", "POLY_BASES", "poly_powers"]
 
@@ -50,6 +51,7 @@ def poly_powers(degree: int, sym: str) -> list[int]:
     return list(range(1, degree + 1))
 
 
+@remember_curve  # loadable as a LinearFittedCurve's representation (hidden-state fits keep that form)
 class Polynomial(LinearCurve):
     """A polynomial curve (Poly-CC).
 

@@ -41,7 +41,7 @@ from ._methods import shared_fit_base as shared_fit_base
 from ..model import FORMAT_VERSION as FORMAT_VERSION
 from ..model import MODEL_SCHEMA as MODEL_SCHEMA
 from ..model import FittedModel as FittedModel
-from ..model import load_model as load_model
+from ._hidden_model import load_model as load_model
 from ..model import validate_model_document as validate_model_document
 from ..model import check_model_digest as check_model_digest
 from ..model import model_digest as model_digest

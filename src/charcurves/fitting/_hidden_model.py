@@ -13,7 +13,7 @@ import numpy as np
 
 from .._errors import DataError
 
-__all__ = ["StateSpaceModel", "build_problem", "record_table", "simulate_states"]
+__all__ = ["StateSpaceModel", "build_problem", "record_table", "simulate_states", "load_model", "METHOD"]
 
 
 def record_table(record, measured: dict, forces) -> tuple[dict, float]:
@@ -46,7 +46,7 @@ def record_table(record, measured: dict, forces) -> tuple[dict, float]:
 
 
 def build_problem(fm, structure, curves, free_gain: bool, gain: float, cols: dict, dt: float, sub: int, hold: str,
-                  starts, L: int, out_index, meas, scale, continuity: float):
+                  starts, L: int, out_index, meas, scale, continuity: float, scalars=()):
     """The shooting problem of ``curves`` (list of ``(name, parametrisation, center (B,), half (B,),
     shift (B,))``) on segments ``starts`` of ``L`` samples, fitting ``meas`` ``(S, L, O)``."""
     import torch
@@ -67,14 +67,15 @@ def build_problem(fm, structure, curves, free_gain: bool, gain: float, cols: dic
     frac = np.arange((L - 1) * sub) / sub
     tt = t[starts[None, :] + np.floor(frac).astype(int)[:, None]] + (frac - np.floor(frac))[:, None] * dt
     times = tuple(T(tt + c * dt / sub) for c in (0.0, 0.5, 1.0))
-    return ShootingProblem(fm, blocks, [], [], free_gain, float(gain), inputs, times, T(meas), list(out_index),
+    return ShootingProblem(fm, blocks, list(scalars), [], free_gain, float(gain), inputs, times, T(meas), list(out_index),
                            T(scale), dt, sub, continuity, torch.as_tensor(np.diff(starts) == L - 1, dtype=torch.bool),
                            weight_decay=1e-10)
 
 
-def simulate_states(fm, curves, gain, y0, cols, dt, sub, hold, segments=None) -> np.ndarray:
+def simulate_states(fm, curves, gain, y0, cols, dt, sub, hold, segments=None, scalars=None) -> np.ndarray:
     """Every ODE state ``(B, n, D)``: one free run of the record from ``y0`` ``(B, D)``, or with
-    ``segments = (y0 (B, S, D), starts, L)`` each segment from its own initial state."""
+    ``segments = (y0 (B, S, D), starts, L)`` each segment from its own initial state; ``scalars``:
+    name -> ``(B,)`` values of the template's scalars."""
     import torch
 
     n = len(cols["t"])
@@ -87,8 +88,11 @@ def simulate_states(fm, curves, gain, y0, cols, dt, sub, hold, segments=None) ->
     specs = [(c.name, c.param(), c.center, c.half, getattr(c, "shift", np.zeros(B))) for c in curves]
     free = np.ndim(gain) > 0
     problem = build_problem(fm, fm.template, specs, free, float(np.mean(gain)) if not free else 1.0, cols, dt, sub,
-                            hold, starts, L, list(range(D)), np.zeros((S, L, D)), np.ones(D), 0.0)
+                            hold, starts, L, list(range(D)), np.zeros((S, L, D)), np.ones(D), 0.0,
+                            scalars=list(scalars or {}))
     parts = [torch.as_tensor(c.theta, dtype=torch.float64) for c in curves]
+    parts += [torch.as_tensor(np.broadcast_to(np.asarray(v, dtype=float), (B,))[:, None].copy()) for v in
+              (scalars or {}).values()]
     if free:
         parts.append(torch.as_tensor(np.asarray(gain, dtype=float)[:, None]))
     parts.append(torch.as_tensor(ys.reshape(B, -1), dtype=torch.float64))
@@ -162,8 +166,9 @@ class StateSpaceModel:
         y0 = self.start_state(record) if initial is None else np.array([initial[n] for n in fm.layout], dtype=float)
         free = self.structure.free_gain
         gain = np.array([self.gain]) if free else self.gain
+        scalars = {k: np.array([float(v)]) for k, v in (self.info.get("scalars") or {}).items()}
         X = simulate_states(fm, [_Simulated(c) for c in self.curves.values()], gain, y0[None], cols, dt,
-                            int(self.info["substeps"]), self.info["hold"])[0]
+                            int(self.info["substeps"]), self.info["hold"], scalars=scalars)[0]
         return {name: X[:, d] for d, name in enumerate(fm.layout)}
 
     def start_state(self, record) -> np.ndarray:
@@ -189,9 +194,70 @@ class StateSpaceModel:
 
     def summary(self) -> dict[str, Any]:
         """What ``result.json`` holds: the template, gain, initial state, gauges and the fit's report."""
-        return {"equation": getattr(self.template, "written", self.structure.text), "gain": self.gain, "initial_state": self.initial_state,
+        return {"method": METHOD, "equation": getattr(self.template, "written", self.structure.text), "gain": self.gain,
+                "initial_state": self.initial_state,
                 "curves": {n: {"argument": c.argument, "domain": list(c.domain)} for n, c in self.curves.items()},
                 **{k: v for k, v in self.info.items()}}
 
+    # ------------------------------------------------------------------ files
+    def to_fitted(self):
+        """The model as a :class:`~charcurves.model.FittedModel` (family ``state-space``), the form
+        model files hold: the template as written with its measured map and hidden initial values,
+        the curves, the gain, ``info["initial_state"]``, ``substeps`` and ``hold`` of the free run."""
+        from ..model import FittedModel
+
+        stages = self.info.get("stages") or []
+        best = int(self.info.get("best_start", 0))
+        loss = float(stages[-1]["loss"][best]) if stages else float("nan")
+        info = {**self.info, "initial_state": dict(self.initial_state)}
+        return FittedModel(self.structure, METHOD, self.curves, self.gain, 0.0, loss, info)
+
+    def save(self, directory) -> None:
+        """Write the model files (``model.json`` and ``arrays.safetensors``, docs/model-format.md);
+        :func:`~charcurves.load_model` reads them back as a StateSpaceModel whose free runs equal
+        this one's to the last bit."""
+        self.to_fitted().save(directory)
+
+    @classmethod
+    def from_fitted(cls, model) -> StateSpaceModel:
+        """The StateSpaceModel a loaded model file of family ``state-space`` holds."""
+        from .._errors import ModelFileError
+        from ..templates import StateSpace
+
+        info = dict(model.info)
+        missing = [k for k in ("initial_state", "measured", "substeps", "hold") if k not in info]
+        if missing:
+            raise ModelFileError(f"the state-space model file lacks info.{missing[0]}; the model file is incomplete, "
+                                 "re-fit the model")
+        template = StateSpace.from_dict(model.template.to_dict())
+        initial_state = {str(k): float(v) for k, v in info.pop("initial_state").items()}
+        return cls(template, model.template, dict(model.curves), model.gain, initial_state, info)
+
     def __repr__(self) -> str:
         return f"StateSpaceModel({self.structure.text!r}, hidden={self.info.get('hidden')})"
+
+
+#: ``method`` of a state-space model in its files and result.json.
+METHOD = "state-space"
+
+
+def load_model(directory):
+    """Read a model written by ``save``: a :class:`StateSpaceModel` for a state-space template with
+    hidden states, else the :class:`~charcurves.model.FittedModel` (as :func:`charcurves.model.load_model`).
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import charcurves as cc
+    >>> from charcurves.systems import get_system
+    >>> path = os.path.join(tempfile.mkdtemp(), "model")
+    >>> cc.fit(get_system("duffing").simulate(), method="parametric", basis="f1=z; f2=z, z**3").save(path)
+    >>> type(cc.load_model(path)).__name__
+    'FittedModel'
+    """
+    from ..model import load_model as load_fitted
+
+    model = load_fitted(directory)
+    if model.template.family == "state-space":
+        return StateSpaceModel.from_fitted(model)
+    return model

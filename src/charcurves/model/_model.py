@@ -421,7 +421,12 @@ def load_model(directory: str | os.PathLike) -> FittedModel:
         check_array_values(arrays, apath)
         tdoc = dict(doc["template"])
         family = tdoc.pop("family")
-        template = get_template(family, **tdoc)
+        if family == "state-space":  # a template with hidden states (charcurves.fitting.fit_state_space)
+            from ..templates import StateSpace
+
+            template: EquationTemplate = StateSpace.from_dict(tdoc).structure()
+        else:
+            template = get_template(family, **tdoc)
         curves = {}
         for spec in doc["curves"]:
             c = curve_from_spec(spec, arrays)

@@ -144,14 +144,24 @@ class StateSpace(Equation):
     def _names(self) -> list[str]:
         return [*super()._names(), "measured", "initial"]
 
-    def structure(self) -> EquationTemplate:
-        structure = EquationTemplate(self.equation_text(), family="state-space", free_gain=bool(self.free_gain),
-                                     gain=self.gain, gauge=self.gauge)
+    def structure(self) -> _Structure:
+        structure = _Structure(self.equation_text(), family="state-space", free_gain=bool(self.free_gain),
+                               gain=self.gain, gauge=self.gauge)
         extra = sorted(set(self._curve_keys) - set(structure.curve_names))
         if extra:
             raise ConfigError(f"the equation has curves {', '.join(structure.curve_names)}, but a representation was "
                               f"given for {', '.join(extra)}; drop it or use it in the equation")
+        # what a model file needs to rebuild the template (EquationTemplate.to_dict writes it)
+        structure.state_space = {"written": self.written, "measured": parse_measured(self.measured) if self.measured
+                                 else {}, "initial": {str(k): float(v) for k, v in (self.initial or {}).items()},
+                                 "asked_gauge": self.gauge}
         return structure
+
+    @classmethod
+    def from_dict(cls, doc: dict) -> StateSpace:
+        """The template a model file's ``template`` object describes (what :meth:`structure` wrote)."""
+        return cls(doc["written"], measured=doc["measured"], initial=doc.get("initial") or None,
+                   gain=doc.get("gain", 1.0), free_gain=bool(doc.get("free_gain", False)), gauge=doc.get("asked_gauge"))
 
     def analysis(self, pinned: Mapping[str, bool] | None = None, structure=None) -> HiddenAnalysis:
         """Measured and hidden states and the gauges of the hidden ones (module docstring); raises
@@ -175,6 +185,16 @@ class StateSpace(Equation):
             raise ConfigError(f"initial names {', '.join(bad)}, which {'is' if len(bad) == 1 else 'are'} not a hidden "
                               f"state; the hidden states are {', '.join(hidden) or 'none'}")
         return _analyse(structure, fm, measured, hidden, initial, dict(pinned or {}))
+
+
+class _Structure(EquationTemplate):
+    """The parsed state-space template; its ``to_dict`` (what a model file holds) adds the text as
+    written, the measured map and the hidden initial values, which :meth:`StateSpace.from_dict` reads."""
+
+    state_space: dict = {}
+
+    def to_dict(self) -> dict:
+        return {**super().to_dict(), **self.state_space}
 
 
 def _uses(expr, state: str) -> bool:
@@ -232,12 +252,13 @@ def _analyse(structure, fm, measured, hidden, initial, pinned) -> HiddenAnalysis
         # ---- offset: h -> h + d
         movers, carriers, ok = [], [], True
         for e, eq in enumerate(eqs):
-            if _has(eq.input, h) or any(_has(m, h) for m in eq.curves.values()) or \
-                    any(_has(s, h) for s in eq.scalars.values()):
+            if _has(eq.input, h) or any(_has(m, h) for m in eq.curves.values()):
                 ok = False
-            dk = sp.diff(eq.known, hs)
+            # the known part and the scalars' signals: linear in h, their constant carried by a curve
+            slopes = [sp.diff(eq.known, hs), *(sp.diff(sig, hs) for sig in eq.scalars.values())]
+            dk = next((d for d in slopes if d != 0), sp.Integer(0))
             if dk != 0:
-                if dk.free_symbols:
+                if any(d.free_symbols for d in slopes):
                     ok = False
                 else:
                     carry = [n for n, m in eq.curves.items() if not sp.sympify(m).free_symbols
@@ -299,15 +320,27 @@ def _scale_free(structure, fm, h, hs) -> bool:
     for n in eq_h.curves:
         if any(n in eq.curves for k, eq in enumerate(structure.equations) if k != e_h):
             return False
+
+    def homogeneous(sig) -> bool:  # s(c h) = c s(h)
+        sig = sp.sympify(sig)
+        hs_ = {v: c * v for v in sig.free_symbols if v.name == h or v.name.startswith(f"{h}__d")}
+        return sp.expand(sig.subs(hs_) - c * sig) == 0
+
+    where = {a: [k for k, eq in enumerate(structure.equations) if a in eq.scalars] for a in structure.scalar_names}
+    for a, sig in eq_h.scalars.items():  # a*s(h) scales with h; a*s (s without h) needs a to absorb c
+        if not (homogeneous(sig) if _uses(sig, h) else where[a] == [e_h]):
+            return False
     if eq_h.input != 0:
         if not structure.free_gain or any(eq.input != 0 for k, eq in enumerate(structure.equations) if k != e_h):
             return False
     for k, eq in enumerate(structure.equations):
         if k == e_h:
             continue
-        if _uses(eq.known, h) or _uses(eq.input, h) or any(_uses(m, h) for m in eq.curves.values()) \
-                or any(_uses(s, h) for s in eq.scalars.values()):
+        if _uses(eq.known, h) or _uses(eq.input, h) or any(_uses(m, h) for m in eq.curves.values()):
             return False
+        for a, sig in eq.scalars.items():  # a*s(h) elsewhere: a -> a/c absorbs the scale
+            if _uses(sig, h) and not (homogeneous(sig) and where[a] == [k]):
+                return False
     for n in structure.curve_names:
         u = structure.argument_exprs[n]
         if _uses(u, h) and sp.simplify(u / hs).free_symbols:
