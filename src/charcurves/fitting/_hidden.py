@@ -73,13 +73,15 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
         fitted on (:class:`~charcurves.curves.ContinuedPolynomial`), so a free run past that range
         does not grow like ``s**degree``; about 3x the CPU time (measured on a 300-sample two-tank fit).
 
-    Ctrl-C (KeyboardInterrupt) stops the fit and keeps the best model so far: the trainer's best
-    weights of the stage it interrupts, or the last finished stage (``info["interrupted"]``); an
-    interrupt before the first stage finished is raised.
-
     Returns
     -------
     StateSpaceModel
+
+    Notes
+    -----
+    Ctrl-C (KeyboardInterrupt) stops the fit and keeps the best model so far: the trainer's best
+    weights of the stage it interrupts, or the last finished stage (``info["interrupted"]``); an
+    interrupt before the first stage finished is raised.
 
     Examples
     --------
