@@ -15,7 +15,7 @@ import signal
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from charcurves._bounds import BOUNDS, THREADS_PER_CORE, check_number, max_threads, range_text
@@ -262,6 +262,7 @@ def _parser():
 
 @settings(max_examples=300, deadline=None)
 @given(option=st.sampled_from(NUMERIC_OPTIONS), text=_EXTREME_TEXT)
+@example(option=("benchmark", "--forward-cases", "forward_cases"), text="--")  # argparse stored [] for `=--`
 def test_parsing_an_extreme_number_gives_a_value_in_range_or_one_line(option, text):
     command, flag, name = option
     bound = BOUNDS[name]

@@ -281,3 +281,27 @@ def test_a_state_space_model_file_without_its_measured_map_is_refused_in_one_lin
         cc.load_model(tmp_path / "m")
     assert str(info.value) == (f"{str(path)!r} is incomplete or corrupted (KeyError: 'measured'); re-save or re-fit "
                                "the model")
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--rows", "0:12"], "the span has 12 rows; validate needs at least 16 (widen --rows)"),
+    (["--rows", "40:81"], "--rows must start at row 0 for a model with hidden states"),
+    (["--x-col", "nothere"], "--x-col does not apply to a model with hidden states"),
+    (["--hold", "zoh"], "--hold does not apply to a model with hidden states"),
+    (["--substeps", "7"], "--substeps does not apply to a model with hidden states"),
+    (["--time-col", "none", "--sample-rate", "2"], "--sample-rate does not apply to a model with hidden states"),
+    (["--time-col", "none"], "a model with hidden states needs the record's time column; give --time-col NAME"),
+])
+def test_validate_of_a_hidden_model_refuses_what_it_cannot_honour(tmp_path, capsys, extra, message):
+    """A short span, a span that starts past the hidden initial values, and options of the ordinary
+    validate that a hidden model does not use: one line, exit 2 (they used to crash or be ignored)."""
+    from charcurves.cli import main
+
+    record, model = _tank_fit()
+    model.save(tmp_path / "m")
+    record.to_csv(tmp_path / "a.csv")
+    capsys.readouterr()
+    assert main(["validate", str(tmp_path / "m"), str(tmp_path / "a.csv"), *extra]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+    assert main(["validate", str(tmp_path / "m"), str(tmp_path / "a.csv"), "--rows", "0:81"]) == 0

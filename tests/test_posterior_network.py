@@ -8,6 +8,8 @@ import json
 import numpy as np
 import pytest
 
+from charcurves._errors import ConfigError
+
 import charcurves as cc
 from charcurves.cli import main
 from charcurves.curves import Basis
@@ -218,6 +220,10 @@ def test_the_simultaneous_band_widens_the_pointwise_one_as_a_sup_t_band(nn):
     # 100 points, the 1 - 0.05 / 200 quantile of N(0, 1), is 3.48
     assert one <= many < 3.48
     assert post.simultaneous_factor(grid, level=0.95) == many  # seeded draws: the same number each time
+    assert post.simultaneous_factor({"f2": np.array([0.0])}) == 1.0  # only the gauge point: no width to cover
+    for bad in ({"level": 1.5}, {"level": 0.0}, {"draws": 0}):
+        with pytest.raises(ConfigError, match="simultaneous_factor needs 0 < level < 1 and draws >= 1"):
+            post.simultaneous_factor(grid, **bad)
 
 
 @pytest.mark.slow

@@ -147,3 +147,8 @@ def test_a_network_posterior_is_saved_and_reloaded(tmp_path):
     _, lo0, hi0 = loaded.curve_band("f2", np.array([0.0]))
     assert abs(hi0[0] - lo0[0]) < 1e-9  # f2(0) = 0 is the gauge
     assert uncertainty_summary(loaded)["method"] == "laplace (gauss-newton, evidence decays)"
+    grid = {"f1": z}
+    assert loaded.posterior.simultaneous_factor(grid) == pytest.approx(model.posterior.simultaneous_factor(grid), rel=0.02)
+    outside = np.array([lo_d - 0.3, hi_d + 0.3])  # past the stored range: infinite band around the curve itself
+    centre, lo_out, hi_out = loaded.curve_band("f1", outside)
+    assert np.array_equal(centre, loaded.curves["f1"](outside)) and np.all(np.isinf(lo_out)) and np.all(np.isinf(hi_out))

@@ -59,3 +59,25 @@ def test_validate_reports_the_share_inside_the_band(fitted, tmp_path):
     pb = doc["segments"][0]["predictive_band"]
     assert failed == [] and pb["draws"] == 100 and 0.9 <= pb["inside"] <= 1.0
     assert lines[1].endswith(f", {100 * pb['inside']:.3g} % of x inside the 95 % predictive band")
+
+
+def test_a_direction_the_record_leaves_open_gives_no_finite_band(fitted):
+    """A posterior with an undetermined gain (infinite variance) must not yield a finite band and a
+    share inside it: the band is unbounded and says which direction is open."""
+    import copy
+
+    from charcurves.model import StoredPosterior
+
+    system, model, val = fitted
+    stored = StoredPosterior.from_posterior(model.posterior, model)
+    names, mean, G, inf = stored.scalars
+    inf = np.array(inf, dtype=bool)
+    inf[names.index("gain")] = True
+    stored.scalars = (names, mean, G, inf)
+    other = copy.deepcopy(model)
+    other.posterior = stored
+    band = predictive_band(other, val, system.x0, system.v0, substeps=1, draws=5)
+    assert band["unbounded"] == ["gain"] and np.isnan(band["inside"]) and band["draws"] == 0
+    assert np.all(np.isinf(band["lo"])) and np.all(np.isinf(band["hi"]))
+    finite = predictive_band(model, val, system.x0, system.v0, substeps=1, draws=5)
+    assert "unbounded" not in finite and np.all(np.isfinite(finite["hi"]))

@@ -111,8 +111,21 @@ def validate_hidden(a) -> int:
     if a.rows and len(a.rows) > 1:
         raise UsageError("--rows once for a model with hidden states (its hidden initial values belong to the "
                          "record's start); validate one span")
-    record = _read_record(a.csv, model.info["measured"], model.structure.forces, a.time_col,
-                          a.rows[0] if a.rows else None)
+    given = [flag for flag, on in (("--x-col", a.x_col != "x"), ("--force-col", a.force_col != "F"),
+                                   ("--sample-rate", a.sample_rate is not None), ("--hold", a.hold is not None),
+                                   ("--substeps", a.substeps is not None)) if on]
+    if given:
+        raise UsageError(f"{given[0]} does not apply to a model with hidden states (its record's columns are the "
+                         "measured map's, its input hold and RK4 steps the fit's); drop it")
+    if a.time_col is None or str(a.time_col).strip().lower() == "none":
+        raise UsageError("a model with hidden states needs the record's time column; give --time-col NAME")
+    span = a.rows[0] if a.rows else None
+    if span is not None and (span.start or 0) != 0:
+        raise UsageError(f"--rows must start at row 0 for a model with hidden states (its hidden initial values are "
+                         f"those of the record's start), got {span.start}:{'' if span.stop is None else span.stop}")
+    record = _read_record(a.csv, model.info["measured"], model.structure.forces, a.time_col, span)
+    if len(record.t) < 16:
+        raise UsageError(f"the span has {len(record.t)} rows; validate needs at least 16 (widen --rows)")
     rmse = model.free_run_rmse(record)
     lines = [f"free run of {folder} (state-space, hidden {', '.join(model.info['hidden'])}; from the record's first "
              "samples, hidden states at their fitted initial values)",

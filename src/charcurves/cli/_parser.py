@@ -40,6 +40,13 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str):  # one line, exit 2, no usage dump
         raise UsageError(f"{message} (see '{self.prog} --help')")
 
+    def _get_values(self, action, arg_strings):
+        # `--opt=--`: argparse drops the "--" as the end-of-options marker and stores [] without calling
+        # the option's type, so a number option would silently hold an empty list
+        if action.option_strings and action.nargs is None and arg_strings == ["--"]:
+            self.error(f"argument {'/'.join(action.option_strings)}: must be a value, got '--'")
+        return super()._get_values(action, arg_strings)
+
 
 def _rows(text: str) -> slice:
     import re
@@ -158,7 +165,8 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                                          "estimated)"))
     f.add_argument("--bands", type=_bands_value, nargs="?", const="posterior", default=None, metavar="posterior|N",
                    help=ranged("bands", "uncertainty bands of the curves (result.json, curves.png): the fit's posterior "
-                                        "(--bands or --bands posterior; fits by equation error) or an "
+                                        "(--bands or --bands posterior; poly-cc, parametric, sindy-cc, nn-cc, nn-cc+sym, "
+                                        "by equation or output error) or an "
                                         "ensemble of N bootstrap refits (--bands N)"))
     f.add_argument("--bands-kind", choices=["bootstrap", "seeds"], default=None,
                    help="ensemble of --bands: wild residual bootstrap of the forcing (default) or training seeds")

@@ -33,6 +33,7 @@ from ._posterior import curve_band as curve_band
 from ._posterior import model_posterior as model_posterior
 from ._posterior import posterior_bands as posterior_bands
 from ._posterior import scalar_lines as scalar_lines
+from ._posterior import sup_t_factor as sup_t_factor
 from ._posterior import uncertainty_summary as uncertainty_summary
 from ._posterior_constants import PlusMinus as PlusMinus
 from ._posterior_constants import closed_form_lines as closed_form_lines

@@ -52,6 +52,36 @@ def model_posterior(model):
     return post
 
 
+def sup_t_factor(G, var, level: float = 0.95, draws: int = 4000) -> float:
+    """The sup-t multiplier of a Gaussian ``value + G u`` (``u`` standard normal) with pointwise
+    variances ``var``: the ``level`` quantile of ``max |G u| / sd`` over seeded draws, so that ``value
+    +- c sd`` holds every point at once with probability ``level``; ``inf`` where a variance is
+    infinite, 1 where no point has any width (gauge points only).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.model import sup_t_factor
+    >>> bool(abs(sup_t_factor(np.eye(1), np.ones(1)) - 1.96) < 0.05)   # one point: the pointwise 1.96
+    True
+    >>> bool(1.96 < sup_t_factor(np.eye(50), np.ones(50)) < 3.5)   # 50 independent points: wider
+    True
+    """
+    if not 0.0 < float(level) < 1.0 or int(draws) < 1:
+        raise ConfigError(f"simultaneous_factor needs 0 < level < 1 and draws >= 1, got level={level!r}, "
+                          f"draws={draws!r}")
+    G, var = np.asarray(G, dtype=float), np.asarray(var, dtype=float)
+    if not np.all(np.isfinite(var)):
+        return float("inf")
+    keep = var > 0
+    if not np.any(keep):
+        return 1.0
+    sd = np.sqrt(var[keep])
+    W = np.random.default_rng(0).standard_normal((G.shape[1], int(draws)))
+    peaks = np.max(np.abs(G[keep] @ W) / sd[:, None], axis=0)
+    return float(np.quantile(peaks, level))
+
+
 def posterior_label(post) -> str:
     """The ``result.json`` ``uncertainty.method`` of a posterior (networks and output error name it
     ``label``; least-squares, post-SR and stored posteriors ``method``)."""
@@ -81,6 +111,10 @@ def curve_band(model, name: str, z, level: float = 0.95) -> tuple[np.ndarray, np
                           "sindy-cc, nn-cc and nn-cc+sym fits, by equation or output error, and post-SR closed "
                           "forms); use charcurves.selection.fit_ensemble for bootstrap bands")
     value, sd = post.curve_sd(name, z)
+    unbounded = ~np.isfinite(sd)
+    if np.any(unbounded):  # outside a stored posterior's range (or a direction the record leaves open) the
+        # band is infinite; its centre is still the model's curve, not the value at the range's end
+        value = np.where(unbounded, np.asarray(model.curves[name](np.asarray(z, dtype=float)), dtype=float), value)
     zq = NormalDist().inv_cdf(0.5 + level / 2.0)
     return value, value - zq * sd, value + zq * sd
 

@@ -123,9 +123,9 @@ def uncertain_parts(model, digits: int | None):
 
     post = model_posterior(model)
     if post is None:
-        raise ConfigError(f"this {model.method} model has no posterior, so its constants have no ±; fit a "
-                          "least-squares method (poly-cc, parametric, sindy-cc) by equation error, or drop "
-                          "uncertainty=True")
+        raise ConfigError(f"this {model.method} model has no posterior, so its constants have no ±; fit with a "
+                          "method that has one (poly-cc, parametric, sindy-cc, nn-cc, nn-cc+sym, by equation or "
+                          "output error, and post-SR closed forms), or drop uncertainty=True")
     scale = curve_scale(model)
 
     def plain(value: float, constant: bool = False):

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import ConfigError, ModelFileError
-from ._posterior import posterior_label
+from ._posterior import posterior_label, sup_t_factor
 
 __all__ = ["StoredPosterior", "posterior_to_spec", "posterior_from_spec", "GRID"]
 
@@ -101,6 +101,16 @@ class StoredPosterior:
         vg = self._splines[name](zc)
         infinite = outside | inf[i] | (inf[i + 1] & (w > 0))
         return vg[:, 0], vg[:, 1:], infinite
+
+    def simultaneous_factor(self, grids: dict, level: float = 0.95, draws: int = 4000) -> float:
+        """The sup-t multiplier over ``grids`` (curve name -> points), as the fit's posterior gives it
+        (:func:`._posterior.sup_t_factor` on the stored map); ``inf`` past the stored range."""
+        parts = [self.curve_factor(k, v) for k, v in grids.items()]
+        if not parts:
+            return 1.0
+        G = np.concatenate([g for _, g, _ in parts])
+        var = np.where(np.concatenate([inf for _, _, inf in parts]), np.inf, np.sum(G**2, axis=1))
+        return sup_t_factor(G, var, level, draws)
 
     def curve_sd(self, name: str, z) -> tuple[np.ndarray, np.ndarray]:
         z = np.asarray(z, dtype=float)

@@ -57,7 +57,14 @@ def predictive_band(model, traj, x0: float, v0: float, *, hold: str = "linear", 
         return None
     K = int(draws)
     U = np.vstack([np.zeros((1, stored.rank)), stored.sample(K, seed)])  # row 0: the fitted model itself
-    names, _, Gs, _ = stored.scalar_factor()
+    names, _, Gs, s_inf = stored.scalar_factor()
+    open_dirs = [n for n, bad in zip(names, s_inf) if bad and n in ("gain", "offset")]
+    open_dirs += [n for n in ("f1", "f2") if np.any(stored.curve_factor(n, stored.curves[n][0])[2])]
+    if open_dirs:  # the record leaves a direction open: a finite band would be a silent narrow one
+        n_t = len(np.asarray(traj.x))
+        return {"level": float(level), "draws": 0, "diverged": 0, "noise_sd": float("nan"), "inside": float("nan"),
+                "centre": np.full(n_t, np.nan), "lo": np.full(n_t, -np.inf), "hi": np.full(n_t, np.inf),
+                "unbounded": open_dirs}
     g = float(model.gain) + (Gs[names.index("gain")] @ U.T if "gain" in names else 0.0)
     b = float(model.offset) + (Gs[names.index("offset")] @ U.T if "offset" in names else 0.0)
     f1, f2 = model.curves["f1"], model.curves["f2"]

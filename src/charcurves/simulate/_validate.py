@@ -181,7 +181,7 @@ def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_co
                                    skip=int(init_window or 0))
             if band is not None:
                 results[-1]["predictive_band"] = {k: band[k] for k in ("level", "inside", "draws", "diverged",
-                                                                       "noise_sd")}
+                                                                       "noise_sd", "unbounded") if k in band}
         sims.append((seg, res, f"{start}:{stop}", band))
     how = "initial state fitted to the first 128 samples" if init_window is None else \
         f"initial state fitted to the first {init_window} samples of each span, the RMSE counted after them"
@@ -189,7 +189,9 @@ def validate_cli(model_dir, csv, *, rows=None, time_col="t", x_col="x", force_co
     for r in results:
         pct = "" if r["rmse_relative_to_std"] is None else f" ({100 * r['rmse_relative_to_std']:.3g} % of std x)"
         pb = r.get("predictive_band")
-        inside = "" if pb is None else f", {100 * pb['inside']:.3g} % of x inside the 95 % predictive band"
+        inside = "" if pb is None else \
+            f", no predictive band: the record leaves {', '.join(pb['unbounded'])} undetermined" if "unbounded" in pb \
+            else f", {100 * pb['inside']:.3g} % of x inside the 95 % predictive band"
         lines.append(f"  rows {r['rows'][0]}:{r['rows'][1]}: {r['status']}, RMSE {r['rmse']:.5g}{pct}, "
                      f"{r['seconds']:.2f} s{inside}")
     if out_dir is not None:
@@ -218,6 +220,7 @@ def _validation_figure(path, sims) -> None:
     fig, axes = plt.subplots(len(sims), 2, figsize=(12, 2.8 * len(sims)), squeeze=False,
                              gridspec_kw={"width_ratios": [1, 2]})
     for row, (seg, res, label, band) in enumerate(sims):
+        band = None if band is not None and "unbounded" in band else band  # no finite band to draw
         t, x = np.asarray(seg.t), np.asarray(seg.x)
         n = res.x.size
         mid = x.size // 2

@@ -149,18 +149,12 @@ class NetworkPosterior:
         >>> bool(1.96 < c < 3.5)  # wider than the pointwise 95 % band, narrower than Bonferroni's
         True
         """
-        center, var, _, G = self._moments({k: np.asarray(v, dtype=float).reshape(-1) for k, v in grids.items()},
-                                          factor=True)
+        from ..model import sup_t_factor
+
+        _, var, _, G = self._moments({k: np.asarray(v, dtype=float).reshape(-1) for k, v in grids.items()},
+                                     factor=True)
         n = sum(np.asarray(v).size for v in grids.values())
-        var, G = var[:n], G[:n]
-        if not np.all(np.isfinite(var)):
-            return float("inf")
-        keep = var > 0
-        sd = np.sqrt(var[keep])
-        rng = np.random.default_rng(0)
-        W = rng.standard_normal((G.shape[1], int(draws)))
-        peaks = np.max(np.abs(G[keep] @ W) / sd[:, None], axis=0)
-        return float(np.quantile(peaks, level))
+        return sup_t_factor(G[:n], var[:n], level, draws)
 
     # ------------------------------------------------------------------ what users ask for
     def curve_sd(self, name: str, z) -> tuple[np.ndarray, np.ndarray]:

@@ -60,13 +60,14 @@ class TrainingPreset:
         ``harmonics="auto"``, ``jump="auto"``). False: only the terms a curve or the preset names,
         e.g. to measure a fit without the automatic terms.
     check_auto_terms : bool
-        Keep a term the tests add only where it helps, by ``auto_terms_rule`` (docs/training-defaults.md).
+        Keep a term the tests add only where it helps, by ``auto_terms_rule`` (docs/automatic-terms.md).
     auto_terms_rule : {"held-out", "aic"}
-        How ``check_auto_terms`` judges the terms. ``"held-out"``: per term, the network alone and
-        the network with that one term are fitted on the record less the ends of every curve's
-        range (5 % of the samples at each end), and the term stays where it predicts those ends
-        better (``charcurves.fitting._heldout_terms``; 1 + (number of terms) fits on the reduced
-        record, one more where the choice differs from the tests'). ``"aic"``: all terms or none,
+        How ``check_auto_terms`` judges the terms. ``"held-out"``: sets of the added terms (every
+        subset of up to two; of more, none, each alone and all) are fitted on the record less the
+        ends of every curve's range (5 % of each curve's weight in the equation at each end), and the
+        smallest set whose error on those ends is within 5 % of the lowest is kept
+        (``charcurves.fitting._heldout_terms``; 2 to n + 2 fits of the reduced record for n terms, one
+        more of the whole record where the choice differs from the tests'). ``"aic"``: all terms or none,
         by the Akaike criterion of two fits of the whole record (``charcurves.fitting._auto_terms``).
 
     Examples
