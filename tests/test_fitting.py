@@ -141,6 +141,9 @@ def test_paper_preset_short_run_uses_the_penalty(duffing_20db):
     assert float(model.curves["f2"](np.array([0.0]))[0]) == pytest.approx(0.0, abs=1e-6)
     assert model.offset == 0.0
     assert np.isfinite(model.loss)
+    # 100-100-100 networks are past the dense Laplace approximation's size: no posterior, and it says why
+    assert model.info["posterior"].startswith("skipped: ") and "use --bands N" in model.info["posterior"]
+    assert model.posterior is None
 
 
 def test_stick_slip_jump_curve_with_sticking_samples_excluded():

@@ -365,6 +365,13 @@ def attach_posterior(model, post: NetworkPosterior, seconds_since: float) -> Non
         model.info.setdefault("warnings", []).extend(post.warnings())
 
 
+#: Above these sizes a network fit gets no posterior (a note in ``info["posterior"]`` says why): the
+#: dense Gauss-Newton matrix is parameters^2 and the Jacobian rows x parameters doubles (the default
+#: preset's 8-unit networks have about 50 parameters per curve; the paper's 100-100-100 about 20 000).
+MAX_DENSE_PARAMS = 3000
+MAX_JACOBIAN_ENTRIES = 5e7
+
+
 def network_posteriors(problem, theta: torch.Tensor, decay: torch.Tensor, ctx: dict, members: list,
                        models: list) -> None:
     """Attach a :class:`NetworkPosterior` to each of ``models`` (record ``k``: the rows
@@ -381,6 +388,15 @@ def network_posteriors(problem, theta: torch.Tensor, decay: torch.Tensor, ctx: d
         if sub.decay_index is not None:
             sub.set_weight_decay(decay[idx].to(sub.y.dtype))
         c = dict(ctx, **ctx["per_record"][k])
+        n_rows = int(sub.y.shape[-1]) * max(1, len(rows))
+        if sub.n_params > MAX_DENSE_PARAMS or n_rows * sub.n_params > MAX_JACOBIAN_ENTRIES:
+            # the dense Laplace approximation holds a rows x parameters Jacobian and a parameters^2
+            # matrix: the paper preset's 100-100-100 networks would need tens of GB
+            model.info["posterior"] = (f"skipped: {sub.n_params} parameters per member and {n_rows} residual rows "
+                                       f"exceed the dense Laplace approximation's limits ({MAX_DENSE_PARAMS} "
+                                       f"parameters, {MAX_JACOBIAN_ENTRIES:.0e} Jacobian entries); use --bands N "
+                                       "for bootstrap bands")
+            continue
         widths = [o + t.curve.slices()["jump_log_eps"].start for t, o in zip(sub.terms, sub.offsets)
                   if getattr(t.curve, "jump", False) and hasattr(t.curve, "slices")]
         if widths:  # a jump's width is a shape the fit chose (sharpened where unresolved): taken as known
