@@ -416,13 +416,13 @@ def test_ctrl_c_during_post_sr_writes_the_finished_fit(tmp_path, record, monkeyp
 
 
 def test_ctrl_c_during_output_error_refinement_writes_the_finished_fit(tmp_path, record, monkeypatch, capsys):
-    import charcurves.fitting._pipeline as pipeline
+    import charcurves.objectives._objectives as objectives
     from charcurves.cli import main
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(pipeline, "output_error_fit", interrupted)  # where the fit looks it up
+    monkeypatch.setattr(objectives, "output_error_fit", interrupted)  # where OutputError.refine looks it up
     csv = tmp_path / "d.csv"
     record.to_csv(csv)
     out = tmp_path / "fit"

@@ -61,6 +61,13 @@ class StoredPosterior:
         """The stored form of ``post`` on ``model``'s curve ranges; None when ``post`` gives no linear map."""
         if not (hasattr(post, "curve_factor") and hasattr(post, "scalar_factor")):
             return None
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=1, user_api="blas"):  # the same bytes whatever OMP_NUM_THREADS says
+            return cls._from_posterior(post, model, n_grid)
+
+    @classmethod
+    def _from_posterior(cls, post, model, n_grid: int) -> StoredPosterior:
         curves = {}
         for name, curve in model.curves.items():
             z = np.linspace(curve.domain[0], curve.domain[1], int(n_grid))

@@ -325,8 +325,11 @@ def train(
 
 @contextlib.contextmanager
 def torch_threads(n: int | None):
-    """Run with ``n`` torch threads and restore the previous count afterwards."""
+    """Run with ``n`` torch threads, and as many BLAS threads for numpy (the posterior's linear
+    algebra: a threaded BLAS sums in another order, so OMP_NUM_THREADS would change the last bits),
+    and restore the previous counts afterwards."""
     import torch
+    from threadpoolctl import threadpool_limits
 
     if n is None:
         yield
@@ -334,7 +337,8 @@ def torch_threads(n: int | None):
     old = torch.get_num_threads()
     torch.set_num_threads(max(1, int(n)))
     try:
-        yield
+        with threadpool_limits(limits=max(1, int(n)), user_api="blas"):
+            yield
     finally:
         torch.set_num_threads(old)
 
