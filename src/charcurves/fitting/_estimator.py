@@ -63,7 +63,7 @@ class CharacteristicCurves(Params):
     random_state : int
         Seed of every random choice (0 to 2**32 - 1).
     threads : int, optional
-        Torch threads during the whole fit (None leaves torch's setting).
+        Torch and BLAS threads during the whole fit (None leaves both as they are).
     device : str
         Where neural curves train: "cpu" or "cuda".
     progress : callable, optional
@@ -167,7 +167,7 @@ class CharacteristicCurves(Params):
         random_state : int
             Seed of every random choice (0 to 2**32 - 1).
         threads : int, optional
-            Torch threads during the whole fit (None leaves torch's setting).
+            Torch and BLAS threads during the whole fit (None leaves both as they are).
         device : str
             Where neural curves train: "cpu" or "cuda".
         progress : callable, optional

@@ -59,7 +59,8 @@ def predictive_band(model, traj, x0: float, v0: float, *, hold: str = "linear", 
     U = np.vstack([np.zeros((1, stored.rank)), stored.sample(K, seed)])  # row 0: the fitted model itself
     names, _, Gs, s_inf = stored.scalar_factor()
     open_dirs = [n for n, bad in zip(names, s_inf) if bad and n in ("gain", "offset")]
-    open_dirs += [n for n in ("f1", "f2") if np.any(stored.curve_factor(n, stored.curves[n][0])[2])]
+    factors = {n: stored.curve_factor(n, stored.curves[n][0]) for n in ("f1", "f2")}  # on the stored grids
+    open_dirs += [n for n in ("f1", "f2") if np.any(factors[n][2])]
     if open_dirs:  # the record leaves a direction open: a finite band would be a silent narrow one
         n_t = len(np.asarray(traj.x))
         return {"level": float(level), "draws": 0, "diverged": 0, "noise_sd": float("nan"), "inside": float("nan"),
@@ -72,7 +73,7 @@ def predictive_band(model, traj, x0: float, v0: float, *, hold: str = "linear", 
     moves = {}
     for name in ("f1", "f2"):  # each draw's move G(z) u_k on the stored grid, interpolated linearly
         grid = stored.curves[name][0]
-        moves[name] = (grid, stored.curve_factor(name, grid)[1] @ U.T)
+        moves[name] = (grid, factors[name][1] @ U.T)
 
     def curve(c, name, z):
         grid, H = moves[name]
