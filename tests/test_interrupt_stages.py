@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from charcurves.fitting import CharacteristicCurves
-from charcurves.symbolic import OperonEngine, SearchInterrupted, searches_running
+from charcurves.symbolic import OperonEngine, SearchInterrupted, forget_searches, searches_running
 from charcurves.systems import get_system
 
 pytest.importorskip("pyoperon")
@@ -108,6 +108,7 @@ def test_an_interrupt_before_any_search_returned_keeps_nothing(monkeypatch):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(OperonEngine, "_search", no_front)
+    forget_searches()  # a search remembered from an earlier test in this worker would never call _search
     est = CharacteristicCurves.from_method("sr", sr_options={"generations": 5})
     with pytest.raises(KeyboardInterrupt):
         est.fit_many([get_system("duffing").simulate()] * 2, seeds=[0, 1])

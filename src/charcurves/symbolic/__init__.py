@@ -34,6 +34,7 @@ from ._engine import (
     TANH_OPERATORS,
     OperonEngine,
     SymbolicRegressionEngine,
+    forget_searches,
     operators_option,
     searches_running,
 )
@@ -65,6 +66,7 @@ __all__ = [
     "distill_curve_front",
     "eval_expression",
     "expression_complexity",
+    "forget_searches",
     "searches_running",
     "has_jump",
     "turns",

@@ -309,6 +309,15 @@ MEMO_SIZE = 256
 _MEMO: dict[tuple, SRResult] = {}
 
 
+def forget_searches() -> int:
+    """Forget the searches remembered in this process; return how many were remembered.
+
+    The next identical search runs again (a spy on the engine sees it, memory is given back)."""
+    n = len(_MEMO)
+    _MEMO.clear()
+    return n
+
+
 def _memo_key(engine, X: np.ndarray, y: np.ndarray, names, random_state: int, ops, context: str) -> tuple:
     """A search's identity: the engine and its settings, the data (by digest), seed, operators, context.
 
