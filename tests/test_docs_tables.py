@@ -12,6 +12,7 @@ import re
 import pytest
 
 from charcurves.experiments import docs_tables, fill_table_markers
+from charcurves.experiments._records_prose import records_prose
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
@@ -19,7 +20,8 @@ RESULTS = ROOT / "benchmarks" / "results"
 PAGES = {"benchmark.md": {"full-duffing", "full-stick-slip", "scripts-duffing", "scripts-stick-slip", "paper-cpu",
                           "appendix-f"},
          "measured-records.md": {"state-noise-duffing", "state-noise-stick-slip", "state-noise-families",
-                                 "state-noise-cost"},
+                                 "state-noise-cost", "state-noise-duffing-text", "state-noise-stick-slip-text",
+                                 "state-noise-families-text", "state-noise-cost-text"},
          "training-defaults.md": {"long-records"},
          "silverbox.md": {"silverbox-cost"},
          "differentiators.md": {"differentiators-seconds", "differentiators-acceleration", "differentiators-velocity",
@@ -119,3 +121,36 @@ def test_a_marker_without_a_table_is_refused_by_name():
     page = "a\n<!-- table:t -->\nold\n<!-- /table -->\nb\n<!-- table:t -->\n<!-- /table -->\n"
     assert fill_table_markers(page, {"t": "| 1 |\n"}) == (
         "a\n<!-- table:t -->\n| 1 |\n<!-- /table -->\nb\n<!-- table:t -->\n| 1 |\n<!-- /table -->\n")
+
+
+def test_the_sentences_under_the_measured_records_tables_are_computed_from_the_rows():
+    """Two seeds of one record: the default against the limit (1.2x and 0.9x of it -> 0.9-1.2x), the peer
+    (3x the method's), equation error against output error (5x and 20x), the jump and the cost ratio."""
+    def row(label, objective, worst, diff="spectral", **kw):
+        return {"system": "duffing", "snr": 40.0, "seed": 0, "label": label, "objective": objective,
+                "differentiator": diff, "f1": worst, "f2": worst / 2, "worst": worst, **kw}
+
+    data = {"rows": [row("nn-cc", "equation-error", 6e-3), row("nn-cc", "auto", 1.2e-3, oe_seconds=4.0, ee_seconds=2.0),
+                     row("poly-cc", "equation-error", 1.8e-2), row("poly-cc", "auto", 0.9e-3, oe_seconds=9.0,
+                                                                  ee_seconds=1.0),
+                     row("parametric (true basis) + output error: the limit", "output-error", 1e-3),
+                     row("PySINDy weak form (the peer)", "weak form", 3.6e-3, diff="savgol (velocity state)"),
+                     {"system": "stick-slip", "snr": 40.0, "seed": 0, "label": "nn-cc+sym", "objective": "auto",
+                      "differentiator": "spectral", "f1": 0.01, "f2": 0.01, "worst": 0.01, "jump_height": 0.79},
+                     {"system": "stick-slip", "snr": 40.0, "seed": 1, "label": "nn-cc+sym", "objective": "auto",
+                      "differentiator": "spectral", "f1": 0.03, "f2": 0.01, "worst": 0.03, "jump_height": 0.81},
+                     {"system": "stick-slip", "snr": 40.0, "seed": 0, "objective": "output-error", "f1": 0.04,
+                      "label": "parametric (true basis) + output error: the limit", "differentiator": "spectral",
+                      "f2": 0.01, "worst": 0.04}],
+            "family_rows": [{"system": "two-dof", "family": "two-dof", "method": "nn-cc", "options": {}, "seed": 2,
+                             "objective": "auto", "nrmse": {"f1": 0.004}, "worst": 0.004, "oe_seconds": 3.0}]}
+    prose = records_prose(data, true_jump=0.801)
+    assert prose["state-noise-duffing-text"] == (
+        "With the default objective, every method's mean worst-curve RMSE is 0.9–1.2× the limit's at 40 dB. "
+        "The peer's is 3–4× the methods' at 40 dB. Equation error alone is 5–20× the same method with output error "
+        "(the same differentiator).\n")
+    assert prose["state-noise-stick-slip-text"] == (
+        "nn-cc+sym learns the jump μN = 0.8 (mean of the 2 seeds, spectral start; true 0.801). The limit's basis "
+        "`z, sign(z)` ends with f1 2× nn-cc+sym's (mean RMSE).\n")
+    assert prose["state-noise-families-text"] == "The worst curve of any of these records is 0.4 % (two-dof, nn-cc, seed 2).\n"
+    assert prose["state-noise-cost-text"].startswith("The largest mean ratio is 9.0× (duffing, poly-cc, 40 dB).")

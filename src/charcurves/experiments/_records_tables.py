@@ -15,6 +15,9 @@ from collections import OrderedDict
 
 import numpy as np
 
+from ..systems import get_system
+from ._records_prose import records_prose
+
 __all__ = ["records_tables"]
 
 _LIMIT = "parametric (true basis) + output error: the limit"
@@ -197,6 +200,7 @@ def records_tables(results_root: str | os.PathLike) -> dict[str, str]:
         out["state-noise-stick-slip"] = state_noise_curves_table(data, "stick-slip")
         out["state-noise-families"] = families_table(data)
         out["state-noise-cost"] = cost_table(data)
+        out.update(records_prose(data, true_jump=getattr(get_system("stick-slip"), "mu_N", None)))
     path = os.path.join(root, "long_records.json")
     if os.path.isfile(path):
         with open(path, encoding="utf-8") as fh:
