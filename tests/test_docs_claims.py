@@ -342,8 +342,9 @@ def test_no_page_names_an_api_that_does_not_exist():
 
 
 def test_the_equation_error_penalty_range_is_the_committed_one():
-    """choosing.md and measured-records.md quote the range of equation error's mean worst-curve RMSE over output
-    error's (the same method and differentiator) from benchmarks/results/state_noise.json."""
+    """choosing.md quotes the range of equation error's mean worst-curve RMSE over output error's (the same
+    method and differentiator) from benchmarks/results/state_noise.json (measured-records.md renders it:
+    tests/test_docs_tables.py)."""
     import collections
     import json
 
@@ -355,36 +356,8 @@ def test_the_equation_error_penalty_range_is_the_committed_one():
     ratios = [mean[k] / mean[k[:3] + ("auto", k[4])] for k in mean
               if k[3] == "equation-error" and k[:3] + ("auto", k[4]) in mean]
     quoted = f"{min(ratios):.1f}–{max(ratios):.1f}×"
-    for page in ("choosing.md", "measured-records.md"):
-        assert f"Equation error alone is {quoted} worse" in _page(page), (page, quoted)
+    assert f"Equation error alone is {quoted} worse" in _page("choosing.md"), quoted
 
-
-def test_the_measured_records_ratios_to_the_limit_and_the_peer_are_the_committed_ones():
-    """measured-records.md's sentence under its rendered Duffing table: the default objective's mean worst curve
-    against the limit (the parametric fit on the true basis) and the peer (PySINDy's weak form), per level."""
-    import collections
-    import json
-
-    rows = json.loads((ROOT / "benchmarks" / "results" / "state_noise.json").read_text())["rows"]
-    runs = collections.defaultdict(list)
-    for r in rows:
-        if r["system"] == "duffing" and r["objective"] != "equation-error":
-            runs[(r["snr"], r["label"], r["differentiator"])].append(r["worst"])
-    mean = {k: float(np.mean(v)) for k, v in runs.items()}
-    limit = {snr: mean[k] for k in mean for snr in (k[0],) if k[1].startswith("parametric")}
-    peer = {snr: mean[k] for k in mean for snr in (k[0],) if k[1].startswith("PySINDy")}
-    ours = {snr: [v for k, v in mean.items() if k[0] == snr and not k[1].startswith(("parametric", "PySINDy"))]
-            for snr in limit}
-    assert max(ours[40.0]) / limit[40.0] < 1.11 and max(ours[30.0]) / limit[30.0] < 1.3
-    ahead = {snr: (peer[snr] / max(ours[snr]), peer[snr] / min(ours[snr])) for snr in limit}
-    assert [round(x, 1) for x in ahead[40.0]] == [1.6, 1.8] and [round(x, 2) for x in ahead[30.0]] == [1.40, 1.85]
-    families = json.loads((ROOT / "benchmarks" / "results" / "state_noise.json").read_text())["family_rows"]
-    worst = max(max(r["nrmse"].values()) for r in families if r["objective"] == "auto")
-    assert 0.011 < worst < 0.015  # the worst curve of the other families' records: van der Pol's f1, 1.11 %
-    assert "Every curve of every record is within 1.5 %." in _page("measured-records.md")
-    text = _page("measured-records.md")
-    assert ("every method is within 11 % of the limit at 40 dB and within 1.3× of it at 30 dB, and 1.6–1.8× ahead "
-            "of the peer at 40 dB, 1.4–1.85× at 30 dB") in text
 
 @pytest.mark.skipif(not (STUDY.exists() and SCRIPTS_DUFFING.exists() and PAPER_CPU.exists()),
                     reason="the committed runs are not in this checkout")

@@ -22,8 +22,9 @@ import numpy as np
 from .._errors import ConfigError, DataError
 from ..model import finish_model
 from ..train import RELEVANCE_LABEL, train
+from ._free_run import _free_run_rmse, _uniform_step, free_run_diagnostics
 from ._records import common_step, record_segments
-from ._revive import revive_pruned_networks
+from ._revive import network_pruned, revival_needed, revive_pruned_networks
 
 __all__ = ["free_run_diagnostics", "output_error_fit", "choose_substeps",
            "choose_segment_length", "slow_template"]
@@ -83,7 +84,8 @@ def _positions(record, positions) -> dict:
     return {p: np.asarray(record.states[p], dtype=float) for p in positions}
 
 
-def output_error_fit(model, prepared, measured, settings: Any, *, preset, progress=None, strict: bool = False):
+def output_error_fit(model, prepared, measured, settings: Any, *, preset, progress=None, strict: bool = False,
+                     revive: bool | None = None):
     """Output error of one fitted model on its record (module docstring).
 
     Parameters
@@ -100,6 +102,11 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
         keeping the equation-error model with the reason in ``info`` (the fallback of ``objective="auto"``).
     preset : TrainingPreset
         Its ``combine`` and ``combine_tol`` decide which ensemble members are averaged.
+    revive : bool, optional
+        Whether networks that equation error pruned restart small (``objectives/_revive.py``). Unset:
+        output error runs without reviving them, and again with them revived where that first run
+        ends above the noise of the measured positions (``info["output_error"]["revival"]`` says
+        which, with the ratio).
 
     Returns
     -------
@@ -119,6 +126,25 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
     >>> model.info["output_error"]["status"], model.curves["f2"].coefficients.round(2).tolist()
     ('ok', [-1.0, 1.0])
     """
+    if revive is None:  # first without reviving pruned networks; again with them where that ends above the noise
+        info, warnings = dict(model.info), list(model.info.get("warnings", []))
+        first = output_error_fit(model, prepared, measured, settings, preset=preset, progress=progress, strict=strict,
+                                 revive=False)
+        again, why = revival_needed(first.info.get("output_error") or {}, measured)
+        if again and not first.info.get("interrupted"):  # after Ctrl-C, nothing more runs
+            if first is model:  # a kept start carries the first run's status: the second starts clean
+                model.info.clear()
+                model.info.update(info)
+                if warnings or "warnings" in info:
+                    model.info["warnings"] = list(warnings)
+            second = output_error_fit(model, prepared, measured, settings, preset=preset, progress=progress,
+                                      strict=strict, revive=True)
+            if (second.info.get("output_error") or {}).get("status", "").startswith("ok"):
+                second.info["output_error"]["revival"] = why
+                return second
+        if why:
+            first.info["output_error"]["revival"] = why
+        return first
     import torch
 
     from ..curves import jump_log_eps, trainable
@@ -157,26 +183,34 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
     T = lambda a: torch.as_tensor(np.asarray(a, dtype=float), dtype=dtype)  # noqa: E731
     col = lambda v: torch.full((M, 1), float(v), dtype=dtype)  # noqa: E731
     blocks, parts = [], []
-    restore, revived = {}, {}
+    restore, revived, free_width, pruned = {}, {}, {}, []
     for name in template.curve_names:
         rf = refits[name]
         theta_c = np.repeat(rf.theta, M // rf.theta.shape[0] + 1, axis=0)[:M] if rf.theta.shape[0] != M else rf.theta
         theta_c = np.array(theta_c, dtype=float)
-        # a network equation error pruned restarts small (._revive): output error cannot reopen it alone
-        theta_c, back = revive_pruned_networks(rf.param, theta_c, _seed(model) * 7919 + template.curve_names.index(name))
-        if back.any():
-            revived[name] = int(back.sum())
+        if revive:  # a network equation error pruned restarts small (._revive): output error cannot reopen it alone
+            theta_c, back = revive_pruned_networks(rf.param, theta_c,
+                                                   _seed(model) * 7919 + template.curve_names.index(name))
+            if back.any():
+                revived[name] = int(back.sum())
+        elif network_pruned(rf.param, theta_c):
+            pruned.append(name)
         frozen = []
         sl = rf.param.slices() if hasattr(rf.param, "slices") else {}
         if "jump_log_eps" in sl:  # train with a width RK4 integrates; the learned one comes back afterwards
             j = sl["jump_log_eps"].start
             floor = _smooth_jump_raw(rf, substeps, dt)
-            # a width equation error profiled above RK4's floor is a smooth saturation (tanh friction):
-            # kept through and after output error; a narrower one is Coulomb's sign, trained at the floor
-            smooth = np.asarray(jump_log_eps(theta_c[:, j])) > floor
-            restore[name] = np.where(smooth, theta_c[:, j], -60.0)
-            theta_c[:, j] = np.where(smooth, theta_c[:, j], floor)
-            frozen.append(j)
+            if np.any(np.asarray(jump_log_eps(theta_c[:, j])) > floor + SMOOTH_JUMP_MARGIN):
+                # equation error profiled a width above RK4's floor: a smooth saturation (tanh friction) or a
+                # step that the differentiator smoothed. The free run decides: the width is trained from there
+                # (never below the floor: a step that would need it is refused as it diverges), and a width that
+                # ends within the margin of the floor is Coulomb's sign afterwards
+                theta_c[:, j] = np.maximum(theta_c[:, j], floor)
+                free_width[name] = (j, floor)
+            else:  # Coulomb's sign: trained at the floor, the sharp step afterwards
+                restore[name] = np.full(theta_c.shape[0], -60.0)
+                theta_c[:, j] = floor
+                frozen.append(j)
         param = rf.param if rf.param.decay_groups() or not settings.bayesian else _Ridge(rf.param)
         blocks.append(CurveBlock(name, param, col(rf.center), col(rf.half_width), col(rf.out_scale), col(rf.shift),
                                  frozen))
@@ -217,6 +251,11 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
                        lm_tol=float(settings.tol), stop_loss=0.0, progress=progress, lm_window=STOP_WINDOW,
                        lm_deadline=time.monotonic() + float(settings.time_budget) - (time.perf_counter() - started),
                        lm_nielsen=True, evidence_sweeps=EVIDENCE_SWEEPS)
+    for i, name in enumerate(template.curve_names):
+        if name in free_width:  # a trained width near RK4's floor is Coulomb's sign; a wider one is kept
+            j, floor = free_width[name]
+            trained = theta[:, problem.block_offsets[i] + j].double().numpy()
+            restore[name] = np.where(np.asarray(jump_log_eps(trained)) <= floor + SMOOTH_JUMP_MARGIN, -60.0, trained)
     with torch.no_grad():
         # members are compared by their fit to the record (the data rows), not by their decay rows
         loss = problem.residuals(theta)[:, :problem.n_data].pow(2).sum(dim=1).double().numpy()
@@ -255,6 +294,7 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
         "iterations": log.lm_iterations, "max_iter": max_iter, "stopped_by": log.stopped_by,
         "evidence_sweeps_undone": log.sweeps_undone,
         "networks_revived": revived,
+        "pruned_networks": pruned,
         "damping": "nielsen",
         "segmented_rmse_before": seg_before, "segmented_rmse_after": seg_after,
         "loss_before": float(loss0.double().min()), "loss_after": float(loss[best]),
@@ -348,95 +388,6 @@ def _members(loss: np.ndarray, gammas, n_data: int, preset):
     return np.flatnonzero(loss <= loss[best] * (1.0 + preset.combine_tol)), best, None
 
 
-def _free_run_x(model, record, y0, hold, substeps):
-    """One free run of the whole record from ``y0`` (separable family): (x, status)."""
-    from ..data import rk4_sampled, stage_inputs
-
-    f1, f2 = _fast_float(model.curves["f1"]), _fast_float(model.curves["f2"])
-    g, b = float(model.gain), float(model.offset)
-
-    def accel(x, v, u):
-        return g * u - f1(v) - f2(x) - b
-
-    ua, um, ub = stage_inputs(np.asarray(record.F, dtype=float), substeps, hold)
-    x, _, status = rk4_sampled(accel, ua, um, ub, float(y0[0]), float(y0[1]), _uniform_step(record), substeps)
-    return np.asarray(x, dtype=float), status
-
-
-def _free_run_rmse(model, record, meas_cols, y0, hold, substeps):
-    """RMSE of one free run of the whole record (separable family; None for other templates or
-    without measured positions)."""
-    if model.template.is_general or meas_cols is None:
-        return None
-    x, status = _free_run_x(model, record, y0, hold, substeps)
-    if status != "ok":
-        return float("inf")
-    return float(np.sqrt(np.mean((x - meas_cols["x"]) ** 2)))
-
-
-def free_run_diagnostics(model, record):
-    """``(t, measured x, free-run x)`` of a model refitted by output error on ``record`` (the
-    measured positions, and one free run of the whole record from the initial state output error
-    estimated, with its input hold and RK4 steps); None when output error did not run, for
-    templates other than the separable one, or when the record has no measured x.
-
-    Examples
-    --------
-    >>> import charcurves as cc
-    >>> from charcurves.fitting import free_run_diagnostics
-    >>> from charcurves.systems import get_system
-    >>> record = cc.corrupt(get_system("duffing").simulate(t_end=10.0, n_points=251), 30, on="state", seed=0)
-    >>> model = cc.fit(record, method="parametric", basis="f1=z; f2=z, z**3", objective=cc.OutputError(segment_length=16, substeps=1, max_iter=2))
-    >>> t, x, x_free = free_run_diagnostics(model, record)
-    >>> t.shape == x.shape == x_free.shape, float(abs(x - x_free).max()) < 0.1
-    (True, True)
-    """
-    from ..data import Trajectory
-
-    oe = model.info.get("output_error") or {}
-    if not str(oe.get("status", "")).startswith(("ok", "interrupted")) or model.template.is_general:
-        return None
-    if not isinstance(record, Trajectory) or "initial_state" not in oe:
-        return None
-    x, status = _free_run_x(model, record, oe["initial_state"], oe["hold"], int(oe["substeps"]))
-    if status != "ok":
-        x = np.where(np.isfinite(x), x, np.nan)
-    return np.asarray(record.t, dtype=float), np.asarray(record.x, dtype=float), x
-
-
-def _fast_float(curve, n: int = 8193):
-    """A function of one float: the closed form, or (other curves) linear interpolation in a table
-    over twice the training range (error about 1e-8 of the curve's curvature; far faster per call
-    than a network evaluation), extrapolated linearly."""
-    if curve.closed_form:
-        return curve.float_function()
-    lo, hi = curve.domain
-    pad = 0.5 * (hi - lo) + 1e-9
-    z0, z1 = lo - pad, hi + pad
-    dz = (z1 - z0) / (n - 1)
-    ys = np.asarray(curve(np.linspace(z0, z1, n)), dtype=float).tolist()
-    last = n - 2
-
-    def f(z):
-        t = (z - z0) / dz
-        i = min(max(int(t), 0), last) if t == t else 0
-        return ys[i] + (t - i) * (ys[i + 1] - ys[i])
-
-    return f
-
-
-def _uniform_step(record, tol: float = 1e-3) -> float:
-    """The sample step of a uniformly sampled record (ConfigError otherwise: a free run driven by a
-    sampled input needs uniform steps)."""
-    t = np.asarray(record.t, dtype=float)
-    steps = np.diff(t)
-    dt = float(np.median(steps))
-    if not dt > 0 or float(np.max(np.abs(steps - dt))) > tol * dt:
-        raise DataError("output error needs uniform sampling (the free run is driven by the sampled input); "
-                        "resample the record onto a uniform grid or use objective='equation-error'")
-    return dt
-
-
 class _Ridge:
     """A parametrisation whose coefficients form one weight-decay group (the evidence then decides how
     much a polynomial or closed form may bend: Bayesian ridge regression)."""
@@ -457,6 +408,10 @@ def _has_columns(record, positions) -> bool:
     if isinstance(record, Trajectory):
         return positions == ["x"]
     return all(p in record.states for p in positions)
+
+
+#: A jump width (log, scaled units) within this of RK4's floor counts as the floor: log(2), a factor 2.
+SMOOTH_JUMP_MARGIN = math.log(2.0)
 
 
 def _smooth_jump_raw(rf, substeps, dt) -> float:
