@@ -147,8 +147,10 @@ def main(argv=None) -> int:
     p.add_argument("--extrapolation", default="polynomial", help="bouc-wen curves past their range: polynomial|linear")
     p.add_argument("--neural", action="store_true", help="two-tank: both outflows as networks (Neural())")
     p.add_argument("--post-sr", action="store_true", help="two-tank: post-SR of the fitted curves (closed forms)")
+    p.add_argument("--time-budget", type=float, default=None,
+                   help="two-tank: the fit's wall-clock budget in seconds (default the fit's, 600)")
     args = p.parse_args(argv)
-    fit = {k: v for k, v in (("degree", args.degree),
+    fit = {k: v for k, v in (("degree", args.degree), ("time_budget", args.time_budget),
                              ("schedule", [int(s) for s in args.schedule.split(",")] if args.schedule else None))
            if v is not None}
     if args.post_sr:

@@ -110,10 +110,15 @@ def test_a_network_the_gauge_anchors_at_zero_must_be_odd():
 
 
 @pytest.mark.parametrize("extra, message", [
-    (["--method", "sindy-cc"], "--method does not apply here: a hidden-state fit (--measured) learns its curves as "
-                               "poly-cc or nn-cc, not sindy-cc"),
-    (["--sr-generations", "5"], "--sr-generations does not apply here: a hidden-state fit runs symbolic regression "
-                                "only with --post-sr"),
+    (["--method", "sindy-cc"], "charcurves: error: --method does not apply here: a hidden-state fit (--measured) "
+                               "learns its curves as poly-cc or nn-cc, not sindy-cc; give --method nn-cc or poly-cc "
+                               "(and --post-sr for closed forms) (see 'charcurves fit --help')"),
+    (["--method", "sr"], "charcurves: error: --method does not apply here: a hidden-state fit (--measured) learns its "
+                         "curves as poly-cc or nn-cc, not sr; give --method nn-cc or poly-cc (and --post-sr for closed "
+                         "forms) (see 'charcurves fit --help')"),
+    (["--sr-generations", "5"], "charcurves: error: --sr-generations does not apply here: a hidden-state fit runs "
+                                "symbolic regression only with --post-sr; add --post-sr or drop --sr-generations (see "
+                                "'charcurves fit --help')"),
 ])
 def test_cli_refuses_what_a_hidden_fit_cannot_use_in_one_line(tmp_path, capsys, extra, message):
     from charcurves.cli import main
@@ -123,7 +128,7 @@ def test_cli_refuses_what_a_hidden_fit_cannot_use_in_one_line(tmp_path, capsys, 
     assert main(["fit", str(csv), "--out", str(tmp_path / "out"), "--equation", TANKS, "--measured", "x2=x",
                  *extra]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and message in err[0]
+    assert err == [message]
 
 
 def test_cli_post_sr_needs_measured_states(tmp_path, capsys):

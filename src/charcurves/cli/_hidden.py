@@ -98,7 +98,8 @@ def _post_sr_lines(post) -> list[str]:
     """summary.txt's lines of a post-SR: each closed form after the refit and the data losses."""
     if not post:
         return []
-    return [*[f"  post-SR {n} = {c['expression']}" for n, c in post["curves"].items()],
+    return [*[f"  post-SR {n} = {c['expression']}" if c["expression"] is not None else
+              f"  post-SR {n}: {c['data_guard']}" for n, c in post["curves"].items()],
             f"  post-SR data loss: {post['loss_before']:.4g} learned, {post['loss_distilled']:.4g} distilled, "
             f"{post['loss_refit']:.4g} refitted"]
 

@@ -66,7 +66,8 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     max_iter : int
         Levenberg-Marquardt iterations per stage.
     time_budget : float
-        Seconds; a stage past it is the last.
+        Seconds; a stage past it is the last. The stage of the networks and post-SR's refit each
+        get at least a quarter of it.
     progress : callable, optional
         Called with one line after each stage.
     extrapolation : {"polynomial", "linear"}
@@ -180,7 +181,7 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     def run(curves, g, sc, tr, iters=max_iter):  # one more stage at the last segment length
         curves = [with_domain(c, arg(c, tr)) for c in curves]
         return _stage(fm, structure, curves, g, sc, tr, data_state, analysis, cols, dt, sub, hold, sched[-1], iters,
-                      continuity, scale, started + time_budget)
+                      continuity, scale, max(started + time_budget, time.perf_counter() + 0.25 * time_budget))
 
     if targets and not interrupted:
         from ._hidden_neural import network_stage

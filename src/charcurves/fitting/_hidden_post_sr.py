@@ -101,19 +101,21 @@ def _row(c, b: int):
 
 
 def closed_forms(curves: list, best: int, anchored, sr_options: dict | None, seed: int, loss_of, bound: float,
-                 n: int = 1000) -> list:
+                 n: int = 1000) -> tuple[list, dict]:
     """The closed form of each curve of row ``best`` (``_ParamCurve``s of one row over
-    :class:`~charcurves.curves.SymbolicParametrisation`, the argument as is; ``meta`` the SR digest).
+    :class:`~charcurves.curves.SymbolicParametrisation`, the argument as is; ``meta`` the SR digest)
+    and, per curve kept as learned, the reason.
 
     A hidden state's free run is sensitive to its curves, and the knee of a front (chosen on the
     curve's samples alone) may let it drift away: each curve's knee is kept when the data loss
     (``loss_of(curves)``, the other curves as learned) stays within ``bound``, else the simplest
-    member of its front that keeps it (the most accurate one when none does); ``meta["data_guard"]``
-    says which."""
+    member of its front that keeps it; when none does, the learned curve stays (one row of it,
+    trained by the refit with the closed forms). ``meta["data_guard"]`` says which."""
     engine = post_sr_engine(sr_options)
     ops = operators_option(sr_options)
     rows = [_row(c, best) for c in curves]
-    out = []
+    out: list = []
+    kept: dict = {}
     for i, c in enumerate(rows):
         source = c.fitted(0)
         t0 = time.perf_counter()
@@ -121,31 +123,38 @@ def closed_forms(curves: list, best: int, anchored, sr_options: dict | None, see
         meta = {**closed.meta, "source_kind": source.kind}
         pick = _closed(c, closed.expression(), c.name in anchored, meta)
         others = lambda k: rows[:i] + [k] + rows[i + 1:]  # noqa: E731
-        if not loss_of(others(pick)) <= bound:
-            best_loss, best_curve = np.inf, pick
+        knee = loss_of(others(pick))
+        if not knee <= bound:
+            best_loss, best_expr = np.inf, None
             for expr in front:  # simplest first
-                trial = _closed(c, expr, c.name in anchored, meta)
-                value = loss_of(others(trial))
+                value = loss_of(others(_closed(c, expr, c.name in anchored, meta)))
                 if value <= bound:
-                    best_loss, best_curve = value, trial
+                    best_loss, best_expr = value, expr
                     break
-                if value < best_loss:
-                    best_loss, best_curve = value, trial
-            how = "front member kept the data loss in bound" if best_loss <= bound else "front member of least data loss"
-            best_curve.meta["data_guard"] = f"{how} (knee {closed.expression()} did not)"
-            pick = best_curve
+                best_loss, best_expr = (value, expr) if value < best_loss else (best_loss, best_expr)
+            if best_loss <= bound:
+                pick = _closed(c, best_expr, c.name in anchored, meta)
+                pick.meta["data_guard"] = f"front member kept the data loss in bound (knee {closed.expression()} did not)"
+            else:  # no closed form keeps the free run: the learned curve stays (trained with the rest)
+                kept[c.name] = {**meta, "distilled": None, "data_guard": (
+                    f"learned curve kept: no front member kept the data loss within {DATA_LOSS_TOLERANCE:.0%} (knee "
+                    f"{closed.expression()}: {knee:.4g}, best member {best_expr}: {best_loss:.4g}, bound {bound:.4g})")}
+                out.append(c)
+                continue
         pick.meta["distill_seconds"] = time.perf_counter() - t0
         out.append(pick)
-    return out
+    return out, kept
 
 
-def post_sr_report(closed: list, loss_before: float, loss_distilled: float, loss_refit: float, seconds: float) -> dict:
-    """``info["post_sr"]``: per curve the distilled form, the refitted one and the SR digest; the
-    data losses (sum of squares over the segments) before, distilled and refitted."""
+def post_sr_report(closed: list, kept: dict, loss_before: float, loss_distilled: float, loss_refit: float,
+                   seconds: float) -> dict:
+    """``info["post_sr"]``: per curve the distilled form, the refitted one (None for a curve kept as
+    learned) and the SR digest; the data losses (sum of squares over the segments) before,
+    distilled and refitted."""
     curves = {}
     for c in closed:
-        meta = dict(c.meta)
-        meta["expression"] = str(c.rep.expression(c.theta[0]))
+        meta = dict(kept[c.name]) if c.name in kept else dict(c.meta)
+        meta["expression"] = None if c.name in kept else str(c.rep.expression(c.theta[0]))
         curves[c.name] = meta
     return {"curves": curves, "loss_before": float(loss_before), "loss_distilled": float(loss_distilled),
             "loss_refit": float(loss_refit), "seconds": float(seconds)}
@@ -162,7 +171,7 @@ def post_sr_stage(run, shared, best, anchored, traj, gain, scalars, loss, sr_opt
         def loss_of(curves):  # the data loss of one row's curves, not trained
             return float(run(curves, g1, sc1, tr1, iters=0)[3][0])
 
-        closed = closed_forms(shared, best, anchored, sr_options, seed, loss_of,
+        closed, kept = closed_forms(shared, best, anchored, sr_options, seed, loss_of,
                               float(loss[best]) * (1.0 + DATA_LOSS_TOLERANCE))
         distilled = run(closed, g1, sc1, tr1, iters=0)[3]
         tr_new, g_new, sc_new, loss_new, iterations, interrupted = run(closed, g1, sc1, tr1)
@@ -174,7 +183,7 @@ def post_sr_stage(run, shared, best, anchored, traj, gain, scalars, loss, sr_opt
                 "seconds": time.perf_counter() - started})
     if interrupted:
         log[-1]["stopped"] = "interrupted"
-    report = post_sr_report(closed, float(loss[best]), float(distilled[0]), float(loss_new[0]),
+    report = post_sr_report(closed, kept, float(loss[best]), float(distilled[0]), float(loss_new[0]),
                             time.perf_counter() - t0)
     if progress is not None:
         progress(f"post-SR: data loss {report['loss_before']:.4g} before, {report['loss_distilled']:.4g} distilled, "
