@@ -51,7 +51,8 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     template : StateSpace
         The template, its measured map and curve representations (unset: polynomials of ``degree``,
         default 10 as :class:`~charcurves.curves.Polynomial`; curves anchored at 0 get a basis
-        without a constant).
+        without a constant; :class:`~charcurves.curves.Neural` curves run the stages as such
+        polynomials and then a stage of their own, :mod:`._hidden_neural`).
     record : Trajectory or MultiTrajectory
         Uniformly sampled; the measured map names its columns (``x`` of a Trajectory, ``x1``... of
         a MultiTrajectory) and the template's forcings must be among its columns.
