@@ -40,8 +40,8 @@ def nrmse(fitted, true, lo, hi) -> float:
     return float(np.sqrt(np.mean((np.asarray(fitted(z), dtype=float) - t) ** 2)) / np.std(t))
 
 
-def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False, **fit) -> dict:
-    from charcurves.curves import Basis
+def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False, neural: bool = False, **fit) -> dict:
+    from charcurves.curves import Basis, Neural
     from charcurves.fitting import fit_state_space
     from charcurves.systems import TwoTank
     from charcurves.templates import StateSpace
@@ -52,6 +52,8 @@ def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False, **fit
     test = system.simulate(n_points=1000, t_end=1000.0, seed=seed + 100)
     # anchored: an empty tank does not drain, f(0) = 0 (a basis without the constant)
     curves = {n: Basis("z, z**2, z**3, z**4, z**5") for n in ("f1", "f2")} if anchored else {}
+    if neural:  # networks (fitting._hidden_neural: the polynomial stages, then a stage of the networks)
+        curves = {n: Neural() for n in ("f1", "f2")}
     template = StateSpace("x1' = g*F - f1(x1); x2' = f1(x1) - f2(x2)", measured={"x2": "x"}, **curves)
     t0 = time.perf_counter()
     model = fit_state_space(template, record, start=start, n_starts=n_starts, seed=seed, **fit)
@@ -68,6 +70,10 @@ def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False, **fit
         "free_run_rmse_test": model.free_run_rmse(test)["x2"],
         "noise_rmse_train": float(np.sqrt(np.mean((record.x - clean["x2"]) ** 2))),
         "stages": model.info["stages"], "gauges": model.info["gauge_freedoms"],
+        "curves": model.info["representations"],
+        **({"post_sr_forms": {n: c["expression"] for n, c in model.info["post_sr"]["curves"].items()},
+            "post_sr_losses": {k: model.info["post_sr"][k] for k in ("loss_before", "loss_distilled", "loss_refit")}}
+           if "post_sr" in model.info else {}),
     }
 
 
@@ -139,10 +145,16 @@ def main(argv=None) -> int:
     p.add_argument("--schedule", default=None, help="segment lengths, e.g. 16,64,256,1000 (two-tank)")
     p.add_argument("--label", default=None, help="a label stored in each row")
     p.add_argument("--extrapolation", default="polynomial", help="bouc-wen curves past their range: polynomial|linear")
+    p.add_argument("--neural", action="store_true", help="two-tank: both outflows as networks (Neural())")
+    p.add_argument("--post-sr", action="store_true", help="two-tank: post-SR of the fitted curves (closed forms)")
+    p.add_argument("--time-budget", type=float, default=None,
+                   help="two-tank: the fit's wall-clock budget in seconds (default the fit's, 600)")
     args = p.parse_args(argv)
-    fit = {k: v for k, v in (("degree", args.degree),
+    fit = {k: v for k, v in (("degree", args.degree), ("time_budget", args.time_budget),
                              ("schedule", [int(s) for s in args.schedule.split(",")] if args.schedule else None))
            if v is not None}
+    if args.post_sr:
+        fit["post_sr"] = True
     os.makedirs(args.out, exist_ok=True)
     path = os.path.join(args.out, "results.jsonl")
     for case in args.cases.split(","):
@@ -150,7 +162,8 @@ def main(argv=None) -> int:
             t0, c0 = time.perf_counter(), time.process_time()
             try:
                 if case in ("two-tank", "two-tank-anchored"):
-                    row = two_tank(start, args.n_starts, args.seed, anchored=case.endswith("anchored"), **fit)
+                    row = two_tank(start, args.n_starts, args.seed, anchored=case.endswith("anchored"),
+                                   neural=args.neural, **fit)
                 elif case == "two-dof-x1":
                     row = two_dof_x1(start, args.n_starts, args.seed)
                 elif case == "bouc-wen":

@@ -59,10 +59,10 @@ def test_sr_operators_give_known_unique_names_with_a_binary_one_or_one_line(text
 TANKS = "x1' = g*F - f1(x1); x2' = f1(x1) - f2(x2)"
 
 
-@pytest.mark.parametrize("extra, flag", [(["--bands", "4"], "--bands"), (["--method", "sr"], "--method"),
+@pytest.mark.parametrize("extra, flag", [(["--bands", "4"], "--bands"),
                                          (["--sym", "f1=odd"], "--sym"), (["--objective", "equation-error"], "--objective"),
                                          (["--long-record"], "--long-record"), (["--x-col", "F"], "--x-col"),
-                                         (["--sr-generations", "5"], "--sr-generations"), (["--truth", "duffing"], "--truth"),
+                                         (["--truth", "duffing"], "--truth"),
                                          (["--family", "first-order"], "--family")])
 def test_an_option_a_hidden_state_fit_does_not_use_is_refused(tmp_path, capsys, extra, flag):
     """Before: ``--measured`` ran its own fit and dropped these without a word (``--bands 4`` gave no bands)."""
@@ -74,8 +74,8 @@ def test_an_option_a_hidden_state_fit_does_not_use_is_refused(tmp_path, capsys, 
     assert main(["fit", str(csv), "--out", str(tmp_path / "o"), "--equation", TANKS, "--measured", "x2=x", *extra]) == 2
     err = capsys.readouterr().err
     assert err == (f"charcurves: error: {flag} does not apply here: a hidden-state fit (--measured) takes the record, "
-                   f"--equation, --free-gain, --start, --seed, --time-col and --rows only; drop {flag} (see "
-                   "'charcurves fit --help')\n")
+                   f"--equation, --free-gain, --start, --method poly-cc or nn-cc, --post-sr, --seed, --time-col and "
+                   f"--rows only; drop {flag} (see 'charcurves fit --help')\n")
     assert not (tmp_path / "o").exists()
 
 

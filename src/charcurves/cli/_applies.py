@@ -35,15 +35,19 @@ def _refuse(command: str, option: str, why: str, fix: str) -> None:
 
 
 #: what a hidden-state fit (``--measured``) does not use, with each option's value when not given
-_NOT_HIDDEN = (("family", "--family", "separable"), ("method", "--method", None), ("sym", "--sym", None), ("gauge", "--gauge", None),
+_NOT_HIDDEN = (("family", "--family", "separable"), ("sym", "--sym", None), ("gauge", "--gauge", None),
                ("noisy_side", "--noisy-side", None), ("preset", "--preset", "default"),
                ("derivatives", "--derivatives", "auto"), ("jump", "--jump", "auto"), ("basis", "--basis", None),
-               *((key, flag, None) for key, flag in _SR_FLAGS), ("keep_sticking", "--keep-sticking", False),
+               ("keep_sticking", "--keep-sticking", False),
                ("x_col", "--x-col", "x"), ("force_col", "--force-col", "F"), ("sample_rate", "--sample-rate", None),
                ("long_record", "--long-record", False), ("truth", "--truth", None), ("threads", "--threads", None),
                ("device", "--device", "cpu"), ("objective", "--objective", None), ("refine", "--refine", None),
                *((key, flag, None) for key, flag in _OE_FLAGS), ("snr", "--snr", None), ("bands", "--bands", None),
                ("report", "--report", False))
+
+
+#: the --method values of a hidden-state fit: polynomial (the default) or neural curves
+HIDDEN_METHODS = ("poly-cc", "nn-cc")
 
 
 def _check_hidden(a) -> None:
@@ -53,18 +57,31 @@ def _check_hidden(a) -> None:
         if getattr(a, "start", "growing") != "growing":
             _refuse("fit", "--start", "it chooses the starts of a hidden-state fit, and --measured is not given",
                     "add --measured STATE=COLUMN (with --equation) or drop --start")
+        if getattr(a, "post_sr", False):
+            _refuse("fit", "--post-sr", "it distils the curves of a hidden-state fit, and --measured is not given",
+                    "add --measured STATE=COLUMN or choose a +post-sr --method (e.g. nn-cc+post-sr)")
         return
     for key, flag, unset in _NOT_HIDDEN:
         if getattr(a, key, unset) != unset:
             _refuse("fit", flag, "a hidden-state fit (--measured) takes the record, --equation, --free-gain, --start, "
-                                 "--seed, --time-col and --rows only", f"drop {flag}")
+                                 "--method poly-cc or nn-cc, --post-sr, --seed, --time-col and --rows only",
+                    f"drop {flag}")
+    if getattr(a, "method", None) not in (None, *HIDDEN_METHODS):
+        _refuse("fit", "--method", f"a hidden-state fit (--measured) learns its curves as {' or '.join(HIDDEN_METHODS)}, "
+                                   f"not {a.method}", "give --method nn-cc or poly-cc (and --post-sr for closed forms)")
+    if not getattr(a, "post_sr", False):
+        given = [flag for key, flag in _SR_FLAGS if getattr(a, key, None) is not None]
+        if given:
+            _refuse("fit", given[0], "a hidden-state fit runs symbolic regression only with --post-sr",
+                    f"add --post-sr or drop {given[0]}")
 
 
 def _check_fit(a) -> None:
     from ..fitting import METHODS
 
     _check_hidden(a)
-    spec = METHODS.get(a.method) if a.method is not None else None
+    # a hidden-state fit's --method names its curves, and its SR is --post-sr's (checked above)
+    spec = METHODS.get(a.method) if a.method is not None and getattr(a, "measured", None) is None else None
     if a.basis is not None and a.method != "parametric":
         _refuse("fit", "--basis", f"it gives the functions of --method parametric, and the method is "
                                   f"{a.method or 'the default (nn-cc)'}", "add --method parametric or drop --basis")

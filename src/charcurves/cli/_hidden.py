@@ -33,6 +33,14 @@ def cmd_fit_hidden(a):
     measured = parse_measured(a.measured)
     template = StateSpace(a.equation, measured=measured, free_gain=bool(a.free_gain))
     structure = template.structure()
+    if getattr(a, "method", None) == "nn-cc":  # a network per curve (fitting._hidden_neural)
+        from ..curves import Neural
+
+        template = StateSpace(a.equation, measured=measured, free_gain=bool(a.free_gain),
+                              **{name: Neural() for name in structure.curve_names})
+    sr_options = {k: v for k, v in (("engine", a.sr_engine), ("generations", a.sr_generations),
+                                    ("populations", a.sr_populations), ("max_size", a.sr_max_size),
+                                    ("operators", a.sr_operators)) if v is not None}
     record = _read_record(a.csv, measured, structure.forces, a.time_col, a.rows)
     check_out_dir(a.out)  # before the fit: a bad --out must not cost a long run
 
@@ -41,7 +49,8 @@ def cmd_fit_hidden(a):
             print(f"  [{line}]  (Ctrl-C stops and keeps the best model so far)", file=sys.stderr, flush=True)
 
     with held_out_dir(a.out), first_interrupt_only():
-        model = fit_state_space(template, record, start=a.start, seed=int(a.seed or 0), progress=progress)
+        model = fit_state_space(template, record, start=a.start, seed=int(a.seed or 0), progress=progress,
+                                post_sr=bool(getattr(a, "post_sr", False)), sr_options=sr_options or None)
         with signals_deferred() as late_interrupt:
             lines = _write(model, template, a.out)
     say("\n".join(lines), a.quiet)
@@ -75,12 +84,24 @@ def _write(model, template, out) -> list[str]:
              f"  start: {model.info['start']} ({model.info['n_starts']} seeded starts), gain {model.gain:.6g}",
              *[f"  scalar {k} = {v:.6g}" for k, v in scalars.items()],
              *[f"  gauge: {g}" for g in model.info["gauge_freedoms"]],
+             *[f"  curve {n}: {k}" for n, k in (model.info.get("representations") or {}).items()],
+             *_post_sr_lines(model.info.get("post_sr")),
              *[f"  free-run RMSE of {s}: {v:.4g}" for s, v in model.info["free_run_rmse"].items()],
              f"wrote {os.path.join(out, 'result.json')} and the model files in {os.path.join(out, 'model')}"]
     atomic_write_bytes(os.path.join(out, "summary.txt"), ("\n".join(lines) + "\n").encode())
     for line in model.info.get("warnings", []):
         warn(line)
     return lines
+
+
+def _post_sr_lines(post) -> list[str]:
+    """summary.txt's lines of a post-SR: each closed form after the refit and the data losses."""
+    if not post:
+        return []
+    return [*[f"  post-SR {n} = {c['expression']}" if c["expression"] is not None else
+              f"  post-SR {n}: {c['data_guard']}" for n, c in post["curves"].items()],
+            f"  post-SR data loss: {post['loss_before']:.4g} learned, {post['loss_distilled']:.4g} distilled, "
+            f"{post['loss_refit']:.4g} refitted"]
 
 
 def is_hidden_model(path) -> bool:

@@ -98,6 +98,9 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                         "every other state is hidden (fitted by output error from seeded starts)")
     f.add_argument("--start", default="growing", choices=("growing", "linear"),
                    help="with --measured: how the hidden-state fit starts (default growing)")
+    f.add_argument("--post-sr", action="store_true",
+                   help="with --measured: distil each learned curve into a closed form and refit its constants by "
+                        "output error (result.json 'post_sr'; the --sr-* options apply)")
     f.add_argument("--method", default=None,
                    help=f"one of: {', '.join(METHODS)} (default: nn-cc with the parity priors the record supports, "
                         "tested first; nn-cc+sym with --sym)")

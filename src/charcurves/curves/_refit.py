@@ -150,12 +150,16 @@ class SymbolicParametrisation:
         args = (self.z, *self.symbols)
         clean = lambda e: e.replace(sp.DiracDelta, lambda *a: sp.Integer(0))  # noqa: E731 - d sign/dz = 0 off 0
         self._f = sp.lambdify(args, full, modules="torch")
-        self._grads = [sp.lambdify(args, clean(sp.diff(full, s)), modules="torch") for s in self.symbols]
-        # d/dz on a real z: Abs(z)' is sign(z) (on a complex z sympy leaves Derivative(re(z)), which the
-        # torch printer can only hand to autograd)
-        real_z = sp.Dummy("z", real=True)
-        dz = sp.diff(full.xreplace({self.z: real_z}), real_z).xreplace({real_z: self.z})
-        self._dz = sp.lambdify(args, clean(dz), modules="torch")
+        # derivatives on real symbols: Abs(z)' is sign(z), also inside Abs(c*z) for a constant c (on
+        # complex symbols sympy leaves Derivative(re(.)), which the torch printer can only hand to autograd)
+        real = {s: sp.Dummy(str(s), real=True) for s in args}
+        back = {v: k for k, v in real.items()}
+
+        def derivative(s):
+            return clean(sp.diff(full.xreplace(real), real[s]).xreplace(back))
+
+        self._grads = [sp.lambdify(args, derivative(s), modules="torch") for s in self.symbols]
+        self._dz = sp.lambdify(args, derivative(self.z), modules="torch")
 
     def expression(self, values):
         import sympy as sp

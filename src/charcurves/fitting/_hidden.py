@@ -42,7 +42,8 @@ START_NAMES = ("growing", "linear")
 def fit_state_space(template, record, *, start: str = "growing", n_starts: int = 4, seed: int = 0, degree: int = 10,
                     schedule=None, substeps: int | None = None, hold: str = "linear", max_iter: int = 40,
                     continuity: float = 10.0, time_budget: float = 600.0, progress=None,
-                    extrapolation: str = "polynomial") -> StateSpaceModel:
+                    extrapolation: str = "polynomial", post_sr: bool = False,
+                    sr_options: dict | None = None) -> StateSpaceModel:
     """Fit a :class:`~charcurves.templates.StateSpace` template with hidden states by output error.
 
     Parameters
@@ -50,7 +51,8 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     template : StateSpace
         The template, its measured map and curve representations (unset: polynomials of ``degree``,
         default 10 as :class:`~charcurves.curves.Polynomial`; curves anchored at 0 get a basis
-        without a constant).
+        without a constant; :class:`~charcurves.curves.Neural` curves run the stages as such
+        polynomials and then a stage of their own, :mod:`._hidden_neural`).
     record : Trajectory or MultiTrajectory
         Uniformly sampled; the measured map names its columns (``x`` of a Trajectory, ``x1``... of
         a MultiTrajectory) and the template's forcings must be among its columns.
@@ -65,13 +67,18 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     max_iter : int
         Levenberg-Marquardt iterations per stage.
     time_budget : float
-        Seconds; a stage past it is the last.
+        Seconds; a stage past it is the last. The stage of the networks and post-SR's refit each
+        get at least a quarter of it.
     progress : callable, optional
         Called with one line after each stage.
     extrapolation : {"polynomial", "linear"}
         ``"linear"``: polynomial curves continue as their tangent line outside the range they were
         fitted on (:class:`~charcurves.curves.ContinuedPolynomial`), so a free run past that range
         does not grow like ``s**degree``; about 3x the CPU time (measured on a 300-sample two-tank fit).
+    post_sr : bool
+        Distil each curve of the best start into a closed form and refit the constants by output
+        error (:mod:`._hidden_post_sr`; ``info["post_sr"]``). ``sr_options``: as
+        :func:`~charcurves.fitting.distill_model`'s.
 
     Returns
     -------
@@ -107,11 +114,16 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     if extrapolation not in ("polynomial", "linear"):
         raise ConfigError(f"unknown extrapolation {extrapolation!r}; choose 'polynomial' or 'linear'")
     continued = extrapolation == "linear"
-    reps = _representations(template, structure, degree, continued)
-    analysis = template.analysis({n: bool(r.pinned_at_zero) or n in structure.anchors for n, r in reps.items()},
-                                 structure)
+    from ._hidden_neural import check_anchors, curve_kind, split_representations, with_domain
+
+    # networks (targets) run the stages as polynomials, then one stage of their own (._hidden_neural)
+    reps, targets = split_representations(template, structure, degree, continued, lambda given: _representations(
+        template, structure, degree, continued, given))
+    pinned_of = {n: bool(targets[n].pinned_at_zero if n in targets else r.pinned_at_zero) for n, r in reps.items()}
+    analysis = template.analysis({n: p or n in structure.anchors for n, p in pinned_of.items()}, structure)
     anchored = set(analysis.anchored) | set(structure.anchors)
-    for n in anchored:
+    check_anchors(targets, anchored)
+    for n in anchored | {n for n, p in pinned_of.items() if p}:
         if not reps[n].pinned_at_zero:
             reps[n] = _pinned(degree, continued)
     cols, dt = record_table(record, analysis.measured, structure.forces)
@@ -164,6 +176,27 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
         if time.perf_counter() - started > time_budget and k < len(stages) - 1:
             log[-1]["stopped"] = "time budget"
             break
+    def arg(c, tr):  # a curve's argument along the states tr (B, n, D)
+        return tr[..., c.arg_layout] if c.arg_layout is not None else c.argument_values(fm, tr, cols)
+
+    def run(curves, g, sc, tr, iters=max_iter):  # one more stage at the last segment length
+        curves = [with_domain(c, arg(c, tr)) for c in curves]
+        return _stage(fm, structure, curves, g, sc, tr, data_state, analysis, cols, dt, sub, hold, sched[-1], iters,
+                      continuity, scale, max(started + time_budget, time.perf_counter() + 0.25 * time_budget))
+
+    if targets and not interrupted:
+        from ._hidden_neural import network_stage
+
+        shared, traj, gain, scalars, loss, interrupted = network_stage(run, arg, shared, targets, traj, gain, scalars,
+                                                                       loss, seed, log, started, progress)
+    best_start, post = None, None
+    if post_sr and not interrupted:
+        from ._hidden_post_sr import post_sr_stage
+
+        best_start = int(np.argmin(np.where(np.isfinite(loss), loss, np.inf)))
+        shared = [with_domain(c, arg(c, traj)) for c in shared]  # distilled over the range the states visit
+        shared, traj, gain, scalars, loss, interrupted, post = post_sr_stage(
+            run, shared, best_start, anchored, traj, gain, scalars, loss, sr_options, seed, log, started, progress)
     finite = np.isfinite(loss)
     if not finite.any():
         raise DataError("the free run of every start diverges; give a shorter record, more starts (n_starts) or "
@@ -172,7 +205,8 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     curves = {c.name: c.fitted(best) for c in shared}
     x0 = traj[best, 0].copy()
     info = {"objective": "output-error (hidden states)", "start": start, "n_starts": B, "seed": int(seed), "extrapolation": extrapolation,
-            "best_start": best, "stages": log, "hidden": list(analysis.hidden), "measured": dict(analysis.measured),
+            "best_start": best if best_start is None else best_start, "stages": log,
+            "representations": {c.name: curve_kind(c) for c in shared}, "hidden": list(analysis.hidden), "measured": dict(analysis.measured),
             "gauge_freedoms": list(analysis.freedoms),
             "gauge_conditions": [f"{a}(0) = 0" for a in sorted(anchored)]
             + [f"{h}(t0) = {v:g}" for h, v in analysis.fixed_initial.items()]
@@ -182,6 +216,8 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
             "cpu_seconds": time.process_time() - cpu_started}
     if interrupted:
         info.update(interrupted=True, stopped_by="interrupted")
+    if post is not None:
+        info["post_sr"] = post
     model = StateSpaceModel(template, structure, curves, float(gain[best]), dict(zip(fm.layout, x0.tolist())), info)
     model.info["free_run_rmse"] = rmse = model.free_run_rmse(record)
     # the same run from the fitted initial state (measured entries as fitted, not the record's first samples)

@@ -95,10 +95,10 @@ class _WithConstant(LinearCurve):
         return None if powers is None else (0, *powers)
 
 
-def _representations(template, structure, degree, continued: bool = False):
+def _representations(template, structure, degree, continued: bool = False, given: dict | None = None):
     out = {}
     for name in structure.curve_names:
-        rep = getattr(template, name, None)
+        rep = given[name] if given is not None else getattr(template, name, None)
         if rep is None:
             rep = Polynomial(degree=int(degree), basis="power")
         if continued and type(rep) is Polynomial:  # a free run past the fitted range continues the tangent

@@ -109,9 +109,15 @@ class _Simulated:
     """A fitted curve in the form :func:`simulate_states` takes."""
 
     def __init__(self, curve, B: int = 1):
-        from ..curves import LinearParametrisation
+        from ..curves import LinearFittedCurve, LinearParametrisation, trainable
 
         self.name = curve.name
+        if not isinstance(curve, LinearFittedCurve):  # a network or a closed form (one member, out_scale 1)
+            refit = trainable(curve)
+            self._param, self.theta = refit.param, np.repeat(refit.theta[:1], B, axis=0)
+            self.center, self.half = np.full(B, refit.center), np.full(B, refit.half_width)
+            self.shift = np.full(B, refit.shift)
+            return
         self._param = LinearParametrisation(curve.representation)
         self.center, self.half = np.full(B, curve.center), np.full(B, curve.half_width)
         self.shift = np.full(B, curve.constant + curve.shift)
@@ -208,7 +214,8 @@ class StateSpaceModel:
 
         stages = self.info.get("stages") or []
         best = int(self.info.get("best_start", 0))
-        loss = float(stages[-1]["loss"][best]) if stages else float("nan")
+        last = stages[-1]["loss"] if stages else []  # post-SR refits the best start alone: one entry
+        loss = float(last[best if best < len(last) else -1]) if last else float("nan")
         info = {**self.info, "initial_state": dict(self.initial_state)}
         return FittedModel(self.structure, METHOD, self.curves, self.gain, 0.0, loss, info)
 
