@@ -40,13 +40,13 @@ def nrmse(fitted, true, lo, hi) -> float:
     return float(np.sqrt(np.mean((np.asarray(fitted(z), dtype=float) - t) ** 2)) / np.std(t))
 
 
-def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False, **fit) -> dict:
+def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False, hold: float = 25.0, **fit) -> dict:
     from charcurves.curves import Basis
     from charcurves.fitting import fit_state_space, window_free_run_error
     from charcurves.systems import TwoTank
     from charcurves.templates import StateSpace
 
-    system = TwoTank()
+    system = TwoTank(hold=hold)  # hold: mean seconds between the pump's level changes
     record = system.simulate(n_points=1000, t_end=1000.0, seed=seed)
     clean = system.states(n_points=1000, t_end=1000.0, seed=seed)
     test = system.simulate(n_points=1000, t_end=1000.0, seed=seed + 100)
@@ -59,6 +59,7 @@ def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False, **fit
     sim = model.simulate(record)
     return {
         "case": "two-tank" + ("-anchored" if anchored else ""), "start": start, "seed": seed, "seconds": seconds,
+        "input_hold_s": hold,
         **fit, "fit_cpu_seconds": model.info["cpu_seconds"], "x1_max_fitted": float(np.nanmax(sim["x1"])), "x1_max_true": float(clean["x1"].max()),
         "f1_nrmse": nrmse(model.curves["f1"], system.f1, clean["x1"].min(), clean["x1"].max()),
         "f2_nrmse": nrmse(model.curves["f2"], system.f2, clean["x2"].min(), clean["x2"].max()),
@@ -85,6 +86,7 @@ def two_dof_x1(start: str, n_starts: int, seed: int, **fit) -> dict:
     sigma = np.sqrt(np.mean(x1 ** 2)) / 100.0  # 40 dB
     noisy = x1 + np.random.default_rng(seed).normal(0.0, sigma, x1.size)
     record = MultiTrajectory(clean.t, {"x1": noisy}, dict(clean.forces))
+    # the couplings f2, f4 of a difference are anchored at 0 by the template, so x2(t0) is fitted
     template = StateSpace("x1'' + f1(x1') + f2(x1 - x2) = F1; x2'' + f3(x2') + f4(x2 - x1) = F2",
                           measured={"x1": "x1"})
     t0 = time.perf_counter()
@@ -96,7 +98,9 @@ def two_dof_x1(start: str, n_starts: int, seed: int, **fit) -> dict:
     ranges = {"f1": (v1.min(), v1.max()), "f2": ((x1 - x2).min(), (x1 - x2).max()),
               "f3": (v2.min(), v2.max()), "f4": ((x2 - x1).min(), (x2 - x1).max())}
     truth = system.true_curves()
-    return {"case": "two-dof-x1", "start": start, "seed": seed, "seconds": seconds, **fit,
+    return {"case": "two-dof-x1", "start": start, "seed": seed,
+            "seconds": seconds, **fit, "x2_0_fitted": float(model.initial_state["x2"]), "x2_0_true": float(x2[0]),
+            "gauge_conditions": model.info["gauge_conditions"],
             "fit_cpu_seconds": model.info["cpu_seconds"],
             **{f"{n}_nrmse": nrmse(model.curves[n], truth[n], *ranges[n]) for n in truth},
             "free_run_rmse_train": model.info["free_run_rmse"]["x1"], "noise_rmse_train": float(sigma),
@@ -141,9 +145,12 @@ def main(argv=None) -> int:
     p.add_argument("--degree", type=int, default=None, help="curves' polynomial degree (two-tank, two-dof-x1; default the fit's)")
     p.add_argument("--schedule", default=None, help="segment lengths, e.g. 16,64,256,1000 (two-tank, two-dof-x1)")
     p.add_argument("--label", default=None, help="a label stored in each row")
+    p.add_argument("--max-iter", type=int, default=None, help="Levenberg-Marquardt iterations per stage")
+    p.add_argument("--tank-hold", type=float, default=25.0,
+                   help="two-tank: mean seconds between the pump's level changes (TwoTank.hold)")
     p.add_argument("--extrapolation", default="polynomial", help="bouc-wen curves past their range: polynomial|linear")
     args = p.parse_args(argv)
-    fit = {k: v for k, v in (("degree", args.degree),
+    fit = {k: v for k, v in (("degree", args.degree), ("max_iter", args.max_iter),
                              ("schedule", [int(s) for s in args.schedule.split(",")] if args.schedule else None))
            if v is not None}
     os.makedirs(args.out, exist_ok=True)
@@ -153,7 +160,8 @@ def main(argv=None) -> int:
             t0, c0 = time.perf_counter(), time.process_time()
             try:
                 if case in ("two-tank", "two-tank-anchored"):
-                    row = two_tank(start, args.n_starts, args.seed, anchored=case.endswith("anchored"), **fit)
+                    row = two_tank(start, args.n_starts, args.seed, anchored=case.endswith("anchored"),
+                                   hold=args.tank_hold, **fit)
                 elif case == "two-dof-x1":
                     row = two_dof_x1(start, args.n_starts, args.seed, **fit)
                 elif case == "bouc-wen":

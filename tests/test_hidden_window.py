@@ -107,3 +107,19 @@ def test_validate_cli_refuses_a_window_that_leaves_too_little(tanks, tmp_path, c
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1
     assert message in err[0] and "--init-window" in err[0]
+
+
+def test_with_a_window_rows_may_start_inside_the_file(tanks, tmp_path, capsys):
+    from charcurves.cli import main
+
+    system, clean, model = tanks
+    model.save(tmp_path / "model")
+    system.simulate(n_points=600, t_end=600.0, seed=3).to_csv(tmp_path / "all.csv")
+    args = ["validate", str(tmp_path / "model"), str(tmp_path / "all.csv"), "--rows", "200:400"]
+    assert main(args) == 2
+    assert "--rows must start at row 0 for a model with hidden states" in capsys.readouterr().err
+    assert main([*args, "--init-window", "40", "--out", str(tmp_path / "v")]) == 0
+    doc = json.loads((tmp_path / "v" / "validation.json").read_text())
+    record = system.simulate(n_points=600, t_end=600.0, seed=3).slice(slice(200, 400))
+    rmse, initial = window_free_run_error(model, record, 40)
+    assert doc["rmse"] == rmse and doc["initial_state"] == initial
