@@ -13,7 +13,8 @@ Each case fits a :class:`~charcurves.templates.StateSpace` template by
 Cases: ``two-tank`` (and ``two-tank-anchored``: both outflows a basis z..z**5 without a constant,
 f(0) = 0) (``TwoTank``, 1000 samples over 1000 s, noise 0.01 on the lower level, the
 upper level hidden; both starts of ``fit_state_space``), ``two-dof-x1`` (the paper's two-DOF
-system, 1500 samples over 60 s, noise on x1 at 40 dB, x2 hidden), ``bouc-wen`` (``BoucWen``,
+system, 1500 samples over 60 s, noise on x1 at 40 dB, x2 hidden; ``two-dof-x1-newton``: one coupling
+curve, ``- f2(x1 - x2)`` in the second equation), ``bouc-wen`` (``BoucWen``,
 ``--bw-samples`` multisine samples for training, the test multisine and sweep records for the free
 run).
 
@@ -74,7 +75,8 @@ def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False, hold:
     }
 
 
-def two_dof_x1(start: str, n_starts: int, seed: int, **fit) -> dict:
+def two_dof_x1(start: str, n_starts: int, seed: int, newton: bool = False, **fit) -> dict:
+    from charcurves.curves import Basis
     from charcurves.data import MultiTrajectory
     from charcurves.fitting import fit_state_space
     from charcurves.systems import TwoDOF
@@ -86,9 +88,13 @@ def two_dof_x1(start: str, n_starts: int, seed: int, **fit) -> dict:
     sigma = np.sqrt(np.mean(x1 ** 2)) / 100.0  # 40 dB
     noisy = x1 + np.random.default_rng(seed).normal(0.0, sigma, x1.size)
     record = MultiTrajectory(clean.t, {"x1": noisy}, dict(clean.forces))
-    # the couplings f2, f4 of a difference are anchored at 0 by the template, so x2(t0) is fitted
-    template = StateSpace("x1'' + f1(x1') + f2(x1 - x2) = F1; x2'' + f3(x2') + f4(x2 - x1) = F2",
-                          measured={"x1": "x1"})
+    # the couplings f2, f4 of a difference are anchored at 0 by the template, so x2(t0) is fitted;
+    # newton: one coupling force, equal and opposite on the two masses (f4(z) = -f2(-z), true here),
+    # f2 on a basis without the constant (no force at zero extension), which fixes x2's offset
+    equation = ("x1'' + f1(x1') + f2(x1 - x2) = F1; x2'' + f3(x2') - f2(x1 - x2) = F2" if newton else
+                "x1'' + f1(x1') + f2(x1 - x2) = F1; x2'' + f3(x2') + f4(x2 - x1) = F2")
+    spring = ", ".join(["z"] + [f"z**{k}" for k in range(2, int(fit.get("degree", 10)) + 1)])
+    template = StateSpace(equation, measured={"x1": "x1"}, **({"f2": Basis(spring)} if newton else {}))
     t0 = time.perf_counter()
     model = fit_state_space(template, record, start=start, n_starts=n_starts, seed=seed, **fit)
     seconds = time.perf_counter() - t0
@@ -98,12 +104,15 @@ def two_dof_x1(start: str, n_starts: int, seed: int, **fit) -> dict:
     ranges = {"f1": (v1.min(), v1.max()), "f2": ((x1 - x2).min(), (x1 - x2).max()),
               "f3": (v2.min(), v2.max()), "f4": ((x2 - x1).min(), (x2 - x1).max())}
     truth = system.true_curves()
-    return {"case": "two-dof-x1", "start": start, "seed": seed,
+    if newton:  # f4 is -f2(-z) by construction
+        model.curves["f4"] = lambda z, f2=model.curves["f2"]: -np.asarray(f2(-np.asarray(z, dtype=float)))
+    return {"case": "two-dof-x1" + ("-newton" if newton else ""), "start": start, "seed": seed,
             "seconds": seconds, **fit, "x2_0_fitted": float(model.initial_state["x2"]), "x2_0_true": float(x2[0]),
             "gauge_conditions": model.info["gauge_conditions"],
             "fit_cpu_seconds": model.info["cpu_seconds"],
             **{f"{n}_nrmse": nrmse(model.curves[n], truth[n], *ranges[n]) for n in truth},
             "free_run_rmse_train": model.info["free_run_rmse"]["x1"], "noise_rmse_train": float(sigma),
+            "free_run_rmse_train_fitted_start": model.info["free_run_rmse_fitted_start"]["x1"],
             "stages": model.info["stages"], "gauges": model.info["gauge_freedoms"]}
 
 
@@ -162,8 +171,8 @@ def main(argv=None) -> int:
                 if case in ("two-tank", "two-tank-anchored"):
                     row = two_tank(start, args.n_starts, args.seed, anchored=case.endswith("anchored"),
                                    hold=args.tank_hold, **fit)
-                elif case == "two-dof-x1":
-                    row = two_dof_x1(start, args.n_starts, args.seed, **fit)
+                elif case in ("two-dof-x1", "two-dof-x1-newton"):
+                    row = two_dof_x1(start, args.n_starts, args.seed, newton=case.endswith("newton"), **fit)
                 elif case == "bouc-wen":
                     row = bouc_wen(start, args.n_starts, args.seed, args.bw_samples, args.extrapolation)
                 else:
