@@ -52,7 +52,9 @@ def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False, hold:
     clean = system.states(n_points=1000, t_end=1000.0, seed=seed)
     test = system.simulate(n_points=1000, t_end=1000.0, seed=seed + 100)
     # anchored: an empty tank does not drain, f(0) = 0 (a basis without the constant)
-    curves = {n: Basis("z, z**2, z**3, z**4, z**5") for n in ("f1", "f2")} if anchored else {}
+    # (powers 1..5, or 1..degree where --degree is given)
+    basis = ", ".join(["z"] + [f"z**{k}" for k in range(2, int(fit.get("degree", 5)) + 1)])
+    curves = {n: Basis(basis) for n in ("f1", "f2")} if anchored else {}
     template = StateSpace("x1' = g*F - f1(x1); x2' = f1(x1) - f2(x2)", measured={"x2": "x"}, **curves)
     t0 = time.perf_counter()
     model = fit_state_space(template, record, start=start, n_starts=n_starts, seed=seed, **fit)
