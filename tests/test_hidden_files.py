@@ -147,8 +147,8 @@ def test_cli_fit_writes_model_files_that_validate_and_report_read(tmp_path, caps
     assert expected == result["free_run_rmse"]  # the saved model free-runs as the fitted one did
     assert lines[1] == f"  x2: RMSE {expected['x2']:.5g}"
     assert json.loads((tmp_path / "val" / "validation.json").read_text())["rmse"] == expected
-    assert main(["validate", str(out), str(tmp_path / "a.csv"), "--init-window", "20"]) == 2
-    assert "--init-window is not offered for models with hidden states yet" in capsys.readouterr().err
+    assert main(["validate", str(out), str(tmp_path / "a.csv"), "--init-window", "20"]) == 0
+    assert "fitted to the first 20 samples, the RMSE counted after them" in capsys.readouterr().out
     assert main(["report", str(out)]) == 0
     assert "charcurves fit: state-space on x1&#x27; = F - f1(x1); x2&#x27; = f1(x1) - f2(x2)  (input gain g learned)" \
         in (out / "report.html").read_text()

@@ -124,9 +124,6 @@ def validate_hidden(a) -> int:
     from ..io import atomic_write_bytes, json_bytes
     from ._common import UsageError, say
 
-    if a.init_window is not None:
-        raise UsageError("--init-window is not offered for models with hidden states yet; drop it (the free run "
-                         "starts from the record's first samples and the hidden states' fitted initial values)")
     folder = a.model if os.path.isfile(os.path.join(a.model, "model.json")) else os.path.join(a.model, "model")
     model = load_model(folder)
     if a.rows and len(a.rows) > 1:
@@ -141,21 +138,35 @@ def validate_hidden(a) -> int:
     if a.time_col is None or str(a.time_col).strip().lower() == "none":
         raise UsageError("a model with hidden states needs the record's time column; give --time-col NAME")
     span = a.rows[0] if a.rows else None
-    if span is not None and (span.start or 0) != 0:
+    if span is not None and (span.start or 0) != 0 and a.init_window is None:
         raise UsageError(f"--rows must start at row 0 for a model with hidden states (its hidden initial values are "
-                         f"those of the record's start), got {span.start}:{'' if span.stop is None else span.stop}")
+                         "those of the record's start; or give --init-window N to estimate them), got "
+                         f"{span.start}:{'' if span.stop is None else span.stop}")
     record = _read_record(a.csv, model.info["measured"], model.structure.forces, a.time_col, span)
     if len(record.t) < 16:
         raise UsageError(f"the span has {len(record.t)} rows; validate needs at least 16 (widen --rows)")
-    rmse = model.free_run_rmse(record)
-    lines = [f"free run of {folder} (state-space, hidden {', '.join(model.info['hidden'])}; from the record's first "
-             "samples, hidden states at their fitted initial values)",
+    if a.init_window is None:
+        rmse, initial, counted = model.free_run_rmse(record), None, [0, len(record.t)]
+        how = "from the record's first samples, hidden states at their fitted initial values"
+    else:
+        from ..fitting import window_free_run_error
+
+        rmse, initial = window_free_run_error(model, record, a.init_window)
+        counted = [int(a.init_window), len(record.t)]
+        how = (f"initial state (hidden states included) fitted to the first {int(a.init_window)} samples, the RMSE "
+               "counted after them")
+    lines = [f"free run of {folder} (state-space, hidden {', '.join(model.info['hidden'])}; {how})",
              *[f"  {s}: RMSE {v:.5g}" for s, v in rmse.items()]]
+    if initial is not None:
+        lines.append("  estimated initial state: " + ", ".join(f"{k} = {v:.6g}" for k, v in initial.items()))
     failed = [s for s, v in rmse.items() if not v < float("inf")]
     if a.out is not None:
         os.makedirs(a.out, exist_ok=True)
         doc = {"model": folder, "csv": a.csv, "status": "failed" if failed else "ok",
                "rmse": {s: (v if v < float("inf") else None) for s, v in rmse.items()}}
+        doc.update(init_window=None if initial is None else int(a.init_window), rmse_rows=counted)
+        if initial is not None:
+            doc["initial_state"] = initial
         atomic_write_bytes(os.path.join(a.out, "validation.json"), json_bytes(doc))
         lines.append(f"wrote {os.path.join(a.out, 'validation.json')}")
     for line in lines:

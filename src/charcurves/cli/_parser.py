@@ -268,8 +268,9 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                    help="run nothing: rebuild report.md/.html and figures/ from the files in --out (results.csv, "
                         "run.json, extras.json, appendix_f.csv)")
     b.add_argument("--real", default=None,
-                   help="a real benchmark instead of the paper's study: silverbox (fits the estimation record, "
-                        "free-runs the official tests after their initialisation window; real.json, real.md)")
+                   help="a real benchmark instead of the paper's study: silverbox or bouc-wen (generated from its "
+                        "definition); fits the estimation record, free-runs the tests after their initialisation "
+                        "window; real.json, real.md")
     b.add_argument("--data-dir", default=None,
                    help="with --real: the folder that holds <benchmark>/ (e.g. silverbox/SNLS80mV.csv); default "
                         "$CHARCURVES_DATA_DIR, else the nonlinear-benchmarks package when installed")

@@ -6,18 +6,19 @@ from collections.abc import Callable
 
 from .._errors import ConfigError
 from ._base import BenchmarkData
+from ._bouc_wen import bouc_wen
 from ._silverbox import silverbox
 
 __all__ = ["BENCHMARKS", "get_benchmark"]
 
 
 def _loaders() -> dict[str, Callable]:
-    # further benchmarks add their loader here (e.g. "bouc-wen": a simulation of its published definition)
-    return {"silverbox": silverbox}
+    # further benchmarks add their loader here
+    return {"silverbox": silverbox, "bouc-wen": bouc_wen}
 
 
 #: the benchmark names ``charcurves benchmark --real`` accepts
-BENCHMARKS = ("silverbox",)
+BENCHMARKS = ("silverbox", "bouc-wen")
 
 
 def get_benchmark(name: str, data_dir=None) -> BenchmarkData:
@@ -27,11 +28,11 @@ def get_benchmark(name: str, data_dir=None) -> BenchmarkData:
     --------
     >>> from charcurves.datasets import BENCHMARKS, get_benchmark
     >>> BENCHMARKS
-    ('silverbox',)
+    ('silverbox', 'bouc-wen')
     >>> get_benchmark("wiener-hammerstein")
     Traceback (most recent call last):
     ...
-    charcurves._errors.ConfigError: unknown real benchmark 'wiener-hammerstein'; choose one of silverbox
+    charcurves._errors.ConfigError: unknown real benchmark 'wiener-hammerstein'; choose one of silverbox, bouc-wen
     """
     loaders = _loaders()
     key = str(name).strip().lower()

@@ -12,6 +12,7 @@ EquationError(), OutputError(...), Auto(...), Objective   objectives (Objective:
 FittedModel, load_model                                    fitted models and their files
 plot_curves, plot_model, model_html, curve_lines, ...      views of a fitted model (figures, text, HTML)
 METHODS, PRESETS, TrainingPreset                           method and training presets
+window_free_run_error, estimate_window_state        validation with an initialisation window (hidden states)
 fit_ensemble(s), bootstrap_records, detect_symmetry, parity_tests   ensembles and parity tests
 curve_band, posterior_bands, uncertainty_summary, LinearPosterior   the posterior of a fit
 closed_form_posterior, ClosedFormPosterior     the posterior of post-SR constants
@@ -116,3 +117,5 @@ from ..model import settings_rows as settings_rows
 from ._hidden import START_NAMES as START_NAMES
 from ._hidden import fit_state_space as fit_state_space
 from ._hidden_model import StateSpaceModel as StateSpaceModel
+from ._hidden_window import estimate_window_state as estimate_window_state
+from ._hidden_window import window_free_run_error as window_free_run_error

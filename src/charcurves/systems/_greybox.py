@@ -115,7 +115,8 @@ class BoucWen:
     period of ``period`` samples (default 8192); :meth:`sweep` a linear sine sweep of amplitude
     ``amplitude`` (default 50 N) from 20 to 50 Hz; the output noise default (``noise``) is a
     standard deviation chosen here, not the benchmark's. Integration: RK45 at tight tolerances
-    (the benchmark used Newmark's rule at 15 kHz).
+    (the benchmark used Newmark's rule at 15 kHz). The benchmark's records as a split
+    (estimation, multisine and sine-sweep tests): :func:`charcurves.datasets.bouc_wen`.
 
     Examples
     --------
