@@ -164,3 +164,18 @@ def test_with_noise_on_x_nn_cc_on_an_offset_record_stays_near_the_limit(duffing)
     e_nn, e_lim = _nrmse(nn, system, clean, 1.0, 10.0), _nrmse(limit, system, clean, 1.0, 10.0)
     for name in ("f1", "f2"):
         assert e_nn[name] <= 2.0 * e_lim[name], (name, e_nn[name], e_lim[name])
+
+
+def test_output_error_keeps_the_constant_that_an_anchor_outside_the_data_moves_into_b(duffing):
+    """f1 odd (pinned) and f2 anchored at 0 outside its data: the free constant b carries f2's value at 0.
+    Output error trains around the equation-error model's shifts; the gauge applied after it used to
+    drop them, so b counted f2(0) twice (poly-cc, 40 dB on x, x + 10: data loss 2.2e17, b = 4.7e8)."""
+    system, clean, _ = duffing
+    rec = corrupt(clean, 40.0, on="state", seed=0)
+    fit = CharacteristicCurves.from_method("poly-cc", symmetry="f1=odd", random_state=0, threads=1)
+    plain = fit.fit(rec).model_
+    shifted = fit.fit(Trajectory(t=rec.t, x=np.asarray(rec.x) + 10.0, F=rec.F)).model_
+    assert shifted.info["output_error"]["status"] == "ok"
+    assert shifted.loss < 1.1 * plain.loss  # measured 0.001729 and 0.001732
+    assert shifted.offset == pytest.approx(system.f2(-10.0), rel=0.01)  # -990.63; the truth -990
+    assert shifted.offset == pytest.approx(-shifted.curves["f2"].shift, rel=1e-3)
