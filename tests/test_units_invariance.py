@@ -179,3 +179,7 @@ def test_output_error_keeps_the_constant_that_an_anchor_outside_the_data_moves_i
     assert shifted.loss < 1.1 * plain.loss  # measured 0.001729 and 0.001732
     assert shifted.offset == pytest.approx(system.f2(-10.0), rel=0.01)  # -990.63; the truth -990
     assert shifted.offset == pytest.approx(-shifted.curves["f2"].shift, rel=1e-3)
+    from charcurves.fitting import scalar_lines
+
+    # the posterior's constant maps the trained shifts the same way (it said -1.9e+03 on the default fit)
+    assert scalar_lines(shifted) == ["  free constant b = -9.9e+02 ± 2.1e+02 (1 sd, posterior)"]

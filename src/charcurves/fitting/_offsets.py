@@ -24,6 +24,9 @@ def name_offset_in_warnings(model) -> None:
         if lo <= 0.0 <= hi:
             continue
         centre = 0.5 * (lo + hi)
+        head = f"self-check: the argument {curve.argument} of {name} lies in ["
+        if any(isinstance(w, str) and w.startswith(head) for w in warnings):
+            continue  # named already (a default fit tests its priors with fits that name it too)
         warnings.append(
             f"self-check: the argument {curve.argument} of {name} lies in [{lo:.4g}, {hi:.4g}], which does not "
             f"contain 0, a likely cause of the misfit; subtract the offset ({curve.argument} - {centre:.4g}) and fit again")
