@@ -262,9 +262,12 @@ def _settings_lines(model) -> list[str]:
     st = model.info.get("settings")
     if not st:
         return []
+    from ..fitting import anchor_notes
+
     curves = ", ".join(f"{k} = {v}" for k, v in st["curves"].items())
     return ["settings (result.json info.settings):",
             f"  template {st['template']} ({st['family']}), gauge {', '.join(st['gauge']) or 'none'}",
+            *(f"  note: {line}" for line in anchor_notes(model)),
             f"  curves {curves}" + (f"; learned jump on {', '.join(st['jumps'])}" if st["jumps"] else ""),
             f"  derivatives {st['differentiator']}; objective {st['objective']} (asked: {st['objective_requested']}); "
             f"post-SR {'yes' if st['post_sr'] else 'no'}; training preset {st['preset']}"]

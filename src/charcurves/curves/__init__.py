@@ -23,6 +23,7 @@ from ._fitted import FittedCurve as FittedCurve
 from ._fitted import LinearFittedCurve as LinearFittedCurve
 from ._fitted import NeuralFittedCurve as NeuralFittedCurve
 from ._fitted import SymbolicFittedCurve as SymbolicFittedCurve
+from ._input_map import neural_input_map as neural_input_map
 from ._registry import curve_from_spec as curve_from_spec
 from ._registry import register_curve_kind as register_curve_kind
 from ._mlp import ACTIVATIONS as ACTIVATIONS

@@ -109,7 +109,10 @@ class FittedCurve(abc.ABC):
 
 
 class NeuralFittedCurve(FittedCurve):
-    """A trained neural curve: ``out_scale * mean_m f_net_m(z / in_scale) + shift``.
+    """A trained neural curve: ``out_scale * mean_m f_net_m((z - in_center) / in_scale) + shift``.
+
+    ``in_center`` is 0 unless the curve's data range excluded 0 (see
+    :func:`~charcurves.curves.neural_input_map`); model files without it read as 0.
 
     ``theta`` holds one row of weights per ensemble member (several starts of the same fit
     are averaged: it cancels most of the initialisation-dependent part of the error).
@@ -128,7 +131,7 @@ class NeuralFittedCurve(FittedCurve):
     kind = "neural"
 
     def __init__(self, name, argument, domain, spec: NeuralCurve, theta: np.ndarray,
-                 in_scale: float, out_scale: float, shift: float = 0.0):
+                 in_scale: float, out_scale: float, shift: float = 0.0, in_center: float = 0.0):
         super().__init__(name, argument, domain, shift)
         self.spec = spec
         self.theta = np.atleast_2d(np.asarray(theta, dtype=np.float64))
@@ -137,7 +140,9 @@ class NeuralFittedCurve(FittedCurve):
                                  f"{spec.n_params} per member; the model file is corrupted")
         self.in_scale = float(in_scale)
         self.out_scale = float(out_scale)
+        self.in_center = float(in_center)
         if not (np.isfinite(self.in_scale) and self.in_scale > 0 and np.isfinite(self.out_scale)
+                and np.isfinite(self.in_center)
                 and self.out_scale != 0 and np.all(np.isfinite(self.theta))):
             raise ModelFileError(f"curve {name}: input scale {in_scale!r} must be finite and positive, output scale "
                                  f"{out_scale!r} finite and non-zero, and the weights finite; the model file is "
@@ -168,7 +173,7 @@ class NeuralFittedCurve(FittedCurve):
         mu = self.theta[:, sl["jump_height"]].reshape(-1, 1) if spec.jump else None
         eps = np.exp(jump_log_eps(self.theta[:, sl["jump_log_eps"]])).reshape(-1, 1) if spec.jump else None
         sym = spec.exact_symmetry
-        s_in, s_out = self.in_scale, self.out_scale
+        s_in, s_out, c_in = self.in_scale, self.out_scale, self.in_center
 
         def net(u):  # u: (n,) -> (members, n)
             h = u.reshape(1, -1, 1)
@@ -180,7 +185,7 @@ class NeuralFittedCurve(FittedCurve):
 
         def f(z):
             z = np.asarray(z, dtype=np.float64)
-            u = z.reshape(-1) / s_in
+            u = (z.reshape(-1) - c_in) / s_in if c_in else z.reshape(-1) / s_in
             if sym == "none":
                 y = net(u)
             else:
@@ -210,7 +215,7 @@ class NeuralFittedCurve(FittedCurve):
         shape = z.shape
         with torch.no_grad():
             th = torch.as_tensor(self.theta, dtype=torch.float64)
-            u = torch.as_tensor(z.reshape(-1) / self.in_scale, dtype=torch.float64)
+            u = torch.as_tensor((z.reshape(-1) - self.in_center) / self.in_scale, dtype=torch.float64)
             y = self.spec.evaluate(th, u).mean(dim=0).numpy()
         return (y * self.out_scale).reshape(shape)
 
@@ -242,6 +247,7 @@ class NeuralFittedCurve(FittedCurve):
             },
             in_scale=self.in_scale,
             out_scale=self.out_scale,
+            **({"in_center": self.in_center} if self.in_center else {}),
         )
         return d, {f"{self.name}.theta": self.theta}
 
@@ -256,7 +262,7 @@ class NeuralFittedCurve(FittedCurve):
         if key not in arrays:
             raise ModelFileError(f"the weights of curve {d['name']} are missing from the model file")
         return cls(d["name"], d["argument"], tuple(d["domain"]), spec, arrays[key],
-                   d["in_scale"], d["out_scale"], d["shift"])
+                   d["in_scale"], d["out_scale"], d["shift"], in_center=d.get("in_center", 0.0))
 
 
 def _np_gelu(z):

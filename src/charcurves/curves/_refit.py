@@ -64,11 +64,11 @@ def trainable(curve) -> CurveRefit:
     if isinstance(curve, NeuralFittedCurve):
         def rebuild(theta):
             return NeuralFittedCurve(curve.name, curve.argument, curve.domain, curve.spec, np.asarray(theta),
-                                     curve.in_scale, curve.out_scale, curve.shift)
+                                     curve.in_scale, curve.out_scale, curve.shift, in_center=curve.in_center)
 
         labels = [f"{curve.name}:w{i}" for i in range(curve.spec.n_params)]
-        return CurveRefit(curve.spec, np.array(curve.theta, dtype=float), 0.0, curve.in_scale, curve.out_scale,
-                          curve.shift, rebuild, labels)
+        return CurveRefit(curve.spec, np.array(curve.theta, dtype=float), curve.in_center, curve.in_scale,
+                          curve.out_scale, curve.shift, rebuild, labels)
     if isinstance(curve, BasisFittedCurve):
         param = LinearParametrisation(Basis(list(curve.basis)))
 

@@ -7,6 +7,7 @@ import numpy as np
 
 from .._errors import ConfigError
 from ._base import AbstractCurve, LinearCurve, normalise_symmetry
+from ._input_map import neural_input_map
 
 __all__ = ["Neural", "SparseLibrary", "Basis", "Symbolic", "SPARSE_OPTIMIZERS"]
 
@@ -114,10 +115,15 @@ class Neural(AbstractCurve):
         p = self.powers_setting(preset)
         return () if p == "auto" else tuple(p)
 
-    def scaling(self, z, preset):
+    def scaling(self, z, preset, jump: bool | None = None):
+        """``(center, half_width)`` of ``u = (z - center) / half_width``: ``(0, max|z|)`` when the
+        argument's range contains 0 or the curve keeps a point at 0 (a parity prior, a jump: ``jump``
+        as decided for the record, default the setting), else the range's midpoint and half width
+        (see :func:`~charcurves.curves.neural_input_map`)."""
         if preset is not None and not preset.scale_inputs:
             return 0.0, 1.0
-        return 0.0, max(float(np.max(np.abs(z))), 1e-300)
+        jump = self.jump is True if jump is None else jump
+        return neural_input_map(z, anchored=self.symmetry_name != "none" or bool(jump))
 
     def parametrisation(self, preset):
         return self.network(preset)
@@ -127,7 +133,7 @@ class Neural(AbstractCurve):
         from ._fitted import NeuralFittedCurve
 
         return NeuralFittedCurve(name, argument, domain, network if network is not None else self.network(None),
-                                 theta, half_width, out_scale, constant)
+                                 theta, half_width, out_scale, constant, in_center=center)
 
 
 #: Sparse-regression optimizers of pysindy that SparseLibrary curves use.

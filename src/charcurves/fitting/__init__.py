@@ -114,6 +114,7 @@ from ..model import format_closed_form as format_closed_form
 from ..model import model_html as model_html
 from ..model import output_error_rows as output_error_rows
 from ..model import settings_rows as settings_rows
+from ..model import anchor_notes as anchor_notes
 from ._hidden import START_NAMES as START_NAMES
 from ._hidden import fit_state_space as fit_state_space
 from ._hidden_model import StateSpaceModel as StateSpaceModel

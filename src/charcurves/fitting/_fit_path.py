@@ -13,6 +13,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .._errors import ConfigError
+from ..curves import neural_input_map
 from ..templates import ESTIMATED_STICK_TOL, EquationTemplate, sticking_mask
 from ..train import TrainingPreset, fit_gradient, fit_linear
 from ._harmonics import harmonic_test
@@ -141,24 +142,30 @@ def _harmonics(reps: dict, rec, template: EquationTemplate, preset: TrainingPres
     out = {}
     for name, ws in fixed.items():
         assert D is not None  # built above whenever there are fixed frequencies
-        scale = rep_scale(neural[name], D["args"][name], preset)
+        scale = rep_scale(neural[name], D["args"][name], preset, jump=name in jumps)
         out[name] = tuple(float(w) * scale for w in ws)
     if auto:
         syms = {n: getattr(r, "symmetry_name", "none") for n, r in reps.items()}
         if preset.symmetry_mode != "exact":
             syms = {n: "none" for n in syms}
         found = harmonic_test(rec, template, syms, auto, jumps)
-        if found and not preset.scale_inputs:  # the test works on z / max|z|; the network on z
+        if found and not preset.scale_inputs:  # the test works on the network's u of a scaled input; the network on z
             D = template.design(rec)
-            found = {n: tuple(w / max(float(np.max(np.abs(D["args"][n]))), 1e-300) for w in ws)
+            found = {n: tuple(w / neural_input_map(D["args"][n], syms[n] != "none" or n in jumps)[1] for w in ws)
                      for n, ws in found.items()}
         out.update(found)
     return tuple((n, out[n]) for n in reps if n in out)
 
 
-def rep_scale(rep, z, preset: TrainingPreset) -> float:
-    """The input scale of a curve's argument (``u = z / scale``)."""
-    return float(rep.scaling(z, preset)[1])
+def rep_scale(rep, z, preset: TrainingPreset, jump: bool | None = None) -> float:
+    """The input scale of a curve's argument (``u = (z - center) / scale``)."""
+    return float(rep.scaling(z, preset, jump=jump)[1])
+
+
+def _unit(z, anchored: bool):
+    """A curve's argument as its network sees it (:func:`~charcurves.curves.neural_input_map`)."""
+    center, half = neural_input_map(z, anchored)
+    return (z - center) / half if center else z / half
 
 
 def nonlinearity_test(traj, template: EquationTemplate, reps: dict, name: str, power: int, jumps) -> float:
@@ -172,10 +179,9 @@ def nonlinearity_test(traj, template: EquationTemplate, reps: dict, name: str, p
     E = D["E"]
     cols = [np.ones(E * D["n"])] if E == 1 else []
     for cname in template.curve_names:
-        u = D["args"][cname]
-        z = np.tile(u / max(float(np.max(np.abs(u))), 1e-300), E)
-        m = D["mult"][cname]
         sym = reps[cname].symmetry_name
+        z = np.tile(_unit(D["args"][cname], sym != "none" or cname in jumps), E)
+        m = D["mult"][cname]
         if sym != "even":
             cols.append(m * z)
         if sym != "odd":
@@ -186,8 +192,7 @@ def nonlinearity_test(traj, template: EquationTemplate, reps: dict, name: str, p
             cols.append(m * np.sign(z))
     cols += list(D["scalars"].values())
     base = np.column_stack(cols)
-    u = D["args"][name]
-    z = np.tile(u / max(float(np.max(np.abs(u))), 1e-300), E)
+    z = np.tile(_unit(D["args"][name], reps[name].symmetry_name != "none" or name in jumps), E)
     X = np.column_stack([base, D["mult"][name] * z**power])
     y = template.gain * D["F"] - D["y"]
     if template.free_gain:

@@ -32,6 +32,7 @@ import math
 
 import numpy as np
 
+from ..curves import neural_input_map
 from ..train import subset_indices
 
 __all__ = ["harmonic_test", "HARMONIC_F_THRESHOLD", "HARMONIC_MIN_GAIN", "HARMONIC_MIN_MISFIT", "MAX_HARMONICS", "HARMONIC_PERIODS"]
@@ -58,8 +59,9 @@ _GRID_PER_PERIOD = 4
 _SAMPLES_PER_PERIOD = 20
 
 
-def _scaled(z):
-    return z / max(float(np.max(np.abs(z))), 1e-300)
+def _scaled(z, anchored: bool = True):
+    center, half = neural_input_map(z, anchored)
+    return (z - center) / half if center else z / half
 
 
 def _columns(kinds, w, u, m):
@@ -67,7 +69,8 @@ def _columns(kinds, w, u, m):
 
 
 def harmonic_test(traj, template, syms: dict, candidates, jumps=()) -> dict[str, tuple[float, ...]]:
-    """Frequencies (in each curve's scaled argument ``u = z / max|z|``) of the significant harmonics.
+    """Frequencies (in each curve's scaled argument ``u``, as its network sees it: ``z / max|z|``, or
+    ``(z - c) / h`` onto [-1, 1] for an unconstrained curve whose range excludes 0) of the significant harmonics.
 
     Parameters
     ----------
@@ -108,10 +111,10 @@ def harmonic_test(traj, template, syms: dict, candidates, jumps=()) -> dict[str,
     cols = [np.ones(E * n)] if E == 1 else []
     scaled, kinds_of = {}, {}
     for cname in template.curve_names:
-        u = np.tile(_scaled(D["args"][cname]), E)
+        sym = syms[cname]
+        u = np.tile(_scaled(D["args"][cname], sym != "none" or cname in jumps), E)
         scaled[cname] = u
         m = D["mult"][cname]
-        sym = syms[cname]
         kinds_of[cname] = {"none": ("sin", "cos"), "odd": ("sin",), "even": ("cos",)}[sym]
         powers = {"none": (1, 2, 3, 4, 5), "odd": (1, 3, 5), "even": (0, 2, 4)}[sym]
         cols += [m * u**k for k in powers if not (k == 0 and E == 1)]

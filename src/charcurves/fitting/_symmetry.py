@@ -8,7 +8,7 @@ bootstrap, see :mod:`._bands`), the odd and even defects on the symmetric part o
 
 are compared with their uncertainty, ``t(z) = defect(z) / sqrt(sd(z)^2 + (tol * scale)^2)``:
 ``sd`` is the ensemble's spread of the defect and ``tol * scale`` an approximation floor (1 %
-of the curve's RMS size) so that noise-free data do not turn a network's tiny asymmetry into a
+of the curve's RMS size about f(0) where the constant can shift) so that noise-free data do not turn a network's tiny asymmetry into a
 rejection. A parity is *consistent* when the RMS of ``t`` over the grid is at most
 ``threshold``. A curve gets a prior only when exactly one parity is consistent: a curve that
 fits both (nearly constant) or neither gets none, and so does one whose argument covers only
@@ -109,7 +109,10 @@ def parity_tests(ensemble, *, threshold: float = PARITY_THRESHOLD, n_grid: int =
         sd_odd = np.std([d[0] for d in member], axis=0, ddof=1)
         sd_even = np.std([d[1] for d in member], axis=0, ddof=1)
         fm0 = np.asarray(curve(-z), dtype=float)
-        scale = float(np.sqrt(np.mean(np.concatenate([f0, fm0]) ** 2)))
+        # the size of the curve's variation: a constant the equation absorbs (one that another curve's
+        # anchor outside its data puts here, as f2(0) = 0 of a record resting at x = 10 does) is not a size
+        c0 = float(np.asarray(curve(zero), dtype=float)[0]) if name in shiftable else 0.0
+        scale = float(np.sqrt(np.mean((np.concatenate([f0, fm0]) - c0) ** 2)))
         floor = APPROX_TOL * max(scale, 1e-300)
         odd_stat = float(np.sqrt(np.mean(odd0**2 / (sd_odd**2 + floor**2))))
         even_stat = float(np.sqrt(np.mean(even0**2 / (sd_even**2 + floor**2))))

@@ -42,6 +42,7 @@ from ._posterior_store import StoredPosterior as StoredPosterior
 from ._plots import plot_curves as plot_curves
 from ._plots import plot_model as plot_model
 from ._plots import resolve_truth as resolve_truth
+from ._gauge_notes import anchor_notes as anchor_notes
 from ._views import curve_lines as curve_lines
 from ._views import equation_text as equation_text
 from ._views import fit_statistics as fit_statistics

@@ -31,15 +31,18 @@ def finish_model(template: EquationTemplate, method: str, curves: dict, gain: fl
     ('demo', 0.0, 0.0)
     """
     pinned = {n: c.pinned_at_zero for n, c in curves.items()}
+    # a curve may arrive with a shift (output error trains around the equation-error model's gauge, its
+    # offsets fitted with those shifts in place): the gauge moves the whole curve, its shift kept in it
     with np.errstate(all="ignore"):  # a basis such as 1/z is infinite at 0: only a gauge there is an error
-        raw0 = {n: float(c.raw(np.array([0.0]))[0]) for n, c in curves.items()}
+        raw0 = {n: float(c.raw(np.array([0.0]))[0]) + c.shift if c.shift else float(c.raw(np.array([0.0]))[0])
+                for n, c in curves.items()}
         shifts, new_off = template.normalise(raw0, pinned, offsets)
     bad = [n for n in curves if not np.isfinite(shifts.get(n, 0.0))]
     if bad:
         raise ConfigError(f"curve {bad[0]} is not finite at 0 (value {raw0[bad[0]]}), where the gauge anchors it "
                           f"({bad[0]}(0) = 0); give functions that are finite at 0, or anchor another curve (--gauge)")
     for n, c in curves.items():
-        c.shift = shifts[n]
+        c.shift = c.shift + shifts[n] if c.shift else shifts[n]
     scal = dict(scalars)
     for e, v in new_off.items():
         if e > 0:

@@ -18,7 +18,7 @@ _MODEL_JSON = "model.json"
 #: and squares of them stay finite in float64 (an output scale of 1e308 would overflow every evaluation).
 MAX_MODEL_MAGNITUDE = 1e100
 _SCALES = ("in_scale", "out_scale", "half_width")
-_CURVE_NUMBERS = ("shift", "in_scale", "out_scale", "center", "half_width", "constant")
+_CURVE_NUMBERS = ("shift", "in_scale", "in_center", "out_scale", "center", "half_width", "constant")
 
 
 # ---------------------------------------------------------------------- model.json schema

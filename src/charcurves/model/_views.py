@@ -11,6 +11,7 @@ import base64
 import html
 
 from ._display import DISPLAY_DIGITS, curve_scale, display_number, format_closed_form
+from ._gauge_notes import anchor_notes
 from ._plots import figure_png
 
 __all__ = ["equation_text", "curve_lines", "fit_statistics", "settings_rows", "output_error_rows", "model_html"]
@@ -140,7 +141,8 @@ def settings_rows(model) -> list[tuple[str, str]]:
     rows = [("template", f"{st.get('template')} ({st.get('family')})"),
             ("curves", "; ".join(f"{k} = {v}" for k, v in (st.get("curves") or {}).items()) or "–"),
             ("symmetry", ", ".join(f"{k} {v}" for k, v in (st.get("symmetry") or {}).items()) or "none"),
-            ("gauge", ", ".join(f"{g}(0) = 0" for g in st.get("gauge") or ()) or "none"),
+            ("gauge", "; ".join([", ".join(f"{g}(0) = 0" for g in st.get("gauge") or ()) or "none",
+                                 *anchor_notes(model)])),
             ("learned jumps", ", ".join(st.get("jumps") or ()) or "none"),
             ("differentiator", str(st.get("differentiator"))),
             ("objective", f"{st.get('objective')} (asked: {st.get('objective_requested')})"),

@@ -39,7 +39,9 @@ class OutputErrorMap:
         for i, nm in enumerate(self.names):  # the constant part: the curve at 0 beyond its parameters' share
             with torch.no_grad():
                 f = self._raw(i, thetas, np.array([0.0])).mean(dim=0)
-            self.c0.append(float(np.asarray(curves[nm].raw(np.array([0.0])))[0]) - float(f[0]))
+            c0 = float(np.asarray(curves[nm].raw(np.array([0.0])))[0]) - float(f[0])
+            trained = float(b[i].shift[0, 0])  # the shift the curve was trained with (finish_model keeps it)
+            self.c0.append(c0 + trained if trained else c0)
 
     def _raw(self, i, Th, z):
         param, o, center, half, out = self.specs[i]

@@ -122,7 +122,8 @@ def fit_gradient(records: Sequence, template: EquationTemplate, reps: dict, pres
             raise DataError("fewer than 10 samples remain after removing sticking phases; give a longer record")
         D = template.design(rec)
         designs.append(D)
-        scales.append({k: reps[k].scaling(D["args"][k], preset) for k in names})
+        scales.append({k: reps[k].scaling(D["args"][k], preset, **({"jump": k in jumps} if reps[k].kind == "neural"
+                                                                  else {})) for k in names})
         signals = dict(D["scalars"])
         signals.update({f"const:{n}": np.broadcast_to(np.asarray(D["mult"][n], dtype=float), (E * D["n"],))
                         for n in own})

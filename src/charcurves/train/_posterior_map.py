@@ -45,8 +45,6 @@ class EquationErrorMap:
             o = c["offsets"][i]
             p = c["params"][nm]
             u = (torch.as_tensor(np.asarray(z, dtype=float), dtype=Th.dtype) - center) / half
-            if c["neural"][nm]:
-                u = torch.as_tensor(np.asarray(z, dtype=float), dtype=Th.dtype) / half
             f = p.evaluate(Th[:, o:o + p.n_params], u.reshape(1, -1).expand(Th.shape[0], -1)).mean(dim=0) * factor
             if nm in own and not c["neural"][nm]:
                 f = f + own[nm]
@@ -116,7 +114,7 @@ class EquationErrorMap:
             center, half = c["scales"][nm]
             o, p = c["offsets"][i], c["params"][nm]
             z = np.asarray(z, dtype=float).reshape(-1)
-            u = torch.as_tensor(z / half if c["neural"][nm] else (z - center) / half, dtype=th.dtype).reshape(1, -1)
+            u = torch.as_tensor((z - center) / half, dtype=th.dtype).reshape(1, -1)
             with torch.no_grad():
                 f, Jf = p.evaluate_jacobian(th[o:o + p.n_params].reshape(1, -1), u)
             f, Jf = f[0].double().numpy(), Jf[0].double().numpy()
