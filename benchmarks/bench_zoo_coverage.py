@@ -71,9 +71,7 @@ def run_job(job, clean_cache) -> dict:
     row["fit_seconds"] = time.perf_counter() - t0
     truth, args = system.truth(), _all_arguments(system, clean)
     row["posterior"] = str(model.info.get("posterior", ""))
-    tests = ((model.info.get("self_check") or {}).get("residual_tests") or {}).get("tests", [])
-    row["binned_p"] = {t["curve"]: min(float(t["p_value"]), row.get("binned_p", {}).get(t["curve"], 1.0))
-                       for t in tests if t.get("test") == "binned"}
+    row["binned_p"] = dict(model.info.get("lack_of_fit_p", {}))  # the bias test of each curve
     row["inside"], row["half_width"], row["inside_plain"], row["half_width_plain"] = {}, {}, {}, {}
     row["error_over_half_width"] = {}
     from statistics import NormalDist
