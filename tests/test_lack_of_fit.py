@@ -80,3 +80,11 @@ def test_a_well_specified_fit_keeps_its_band():
     wide = LackOfFitPosterior(model.posterior, {"f2": (c, b)})
     ratio = wide.curve_sd("f2", z)[1] / model.posterior.curve_sd("f2", z)[1]
     assert np.all(ratio >= 1.0) and 2.5 < np.median(ratio) < 3.5
+
+
+def test_the_constants_keep_their_sds_under_the_widened_band(tanh_fit):
+    from charcurves.model import constant_sds_of
+
+    _, model, _ = tanh_fit
+    sds = constant_sds_of(model, "f2")  # the constants' posterior is the plain one: the term is about the band
+    assert sds is not None and len(sds) == 2 and all(0 < v < np.inf for v in sds.values())
