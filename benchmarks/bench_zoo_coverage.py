@@ -34,17 +34,18 @@ from bench_zoo import _all_arguments, noisy_record  # noqa: E402
 RESULTS = os.path.join(HERE, "results", "zoo-coverage", "results.jsonl")
 SETTINGS = ("F25", "x30")
 METHODS = ("poly-cc", "sindy-cc+sym", "parametric")
+ALL_METHODS = ("poly-cc", "sindy-cc+sym", "parametric", "nn-cc", "nn-cc+sym")
 LEVEL = 0.95
 
 
-def jobs(seeds) -> list[tuple[str, str, str, int]]:
+def jobs(seeds, half="report", methods=METHODS, settings=SETTINGS, systems=None) -> list[tuple[str, str, str, int]]:
     out = []
     for seed in seeds:
-        for setting in SETTINGS:
-            for name, half in zoo.SYSTEM_HALF.items():
-                if half != "report":
+        for setting in settings:
+            for name, h in zoo.SYSTEM_HALF.items():
+                if h != half or (systems and name not in systems):
                     continue
-                for method in METHODS:
+                for method in methods:
                     if method == "sindy-cc+sym" and not zoo.SYSTEMS[name].all_odd():
                         continue
                     out.append((name, method, setting, seed))
@@ -69,7 +70,15 @@ def run_job(job, clean_cache) -> dict:
         return row
     row["fit_seconds"] = time.perf_counter() - t0
     truth, args = system.truth(), _all_arguments(system, clean)
-    row["inside"], row["half_width"] = {}, {}
+    row["posterior"] = str(model.info.get("posterior", ""))
+    row["binned_p"] = dict(model.info.get("lack_of_fit_p", {}))  # the bias test of each curve
+    row["inside"], row["half_width"], row["inside_plain"], row["half_width_plain"] = {}, {}, {}, {}
+    row["error_over_half_width"] = {}
+    from statistics import NormalDist
+
+    zq = NormalDist().inv_cdf(0.5 + LEVEL / 2)
+    post = cc.model.model_posterior(model)
+    plain = getattr(post, "inner", post)  # the Laplace posterior without the lack-of-fit term
     for slot in system.scored:
         lo, hi = float(args[slot].min()), float(args[slot].max())
         z = np.linspace(lo, hi, 200)
@@ -81,6 +90,12 @@ def run_job(job, clean_cache) -> dict:
         f = truth[slot](z)
         row["inside"][slot] = float(np.mean((f >= blo) & (f <= bhi)))
         row["half_width"][slot] = float(np.mean((bhi - blo) / 2) / np.std(f))
+        value, sd = plain.curve_sd(slot, z)
+        hw = zq * np.asarray(sd)
+        row["inside_plain"][slot] = float(np.mean(np.abs(f - value) <= hw))
+        row["half_width_plain"][slot] = float(np.mean(hw) / np.std(f))
+        ok = hw > 0
+        row["error_over_half_width"][slot] = float(np.mean(np.abs(f - value)[ok] / hw[ok])) if np.any(ok) else 0.0
     return row
 
 
@@ -91,17 +106,34 @@ def load_rows(path=RESULTS) -> list[dict]:
         return [json.loads(line) for line in fh if line.strip()]
 
 
-def table(rows) -> str:
+def gated(rows, level: float) -> list[dict]:
+    """The rows with the lack-of-fit band ("inside") only for curves whose binned test's p-value is
+    below ``level``, the plain band otherwise: exact for rows recorded at ``level`` or a laxer
+    ``--lof-level``."""
+    out = []
+    for r in rows:
+        if "inside_plain" not in r or "binned_p" not in r:
+            out.append(r)
+            continue
+        r = dict(r)
+        use = {s: r["binned_p"].get(s, 1.0) < level for s in r["inside"]}
+        r["inside"] = {s: r["inside"][s] if use[s] else r["inside_plain"][s] for s in r["inside"]}
+        r["half_width"] = {s: r["half_width"][s] if use[s] else r["half_width_plain"][s] for s in r["half_width"]}
+        out.append(r)
+    return out
+
+
+def table(rows, methods=METHODS, key="inside") -> str:
     """Per setting and method: the mean share of the grid inside the 95 % band over every report-half
     curve and seed, the share of fits whose band holds at least 90 % of the grid, the median half-width."""
     out = ["| setting | method | grid inside 95 % band (mean) | fits with >= 0.9 of the grid inside | "
            "half-width / sd(truth) (median) | curves x seeds | seeds | errors |", "|---|---|---|---|---|---|---|---|"]
     for setting in SETTINGS:
-        for method in METHODS:
+        for method in methods:
             sel = [r for r in rows if r["setting"] == setting and r["method"] == method]
-            good = [r for r in sel if "inside" in r and "error" not in r]
-            inside = [v for r in good for v in r["inside"].values()]
-            width = [v for r in good for v in r["half_width"].values()]
+            good = [r for r in sel if key in r and "error" not in r]
+            inside = [v for r in good for v in r[key].values()]
+            width = [v for r in good for v in r[key.replace("inside", "half_width")].values()]
             if not sel:
                 continue
             seeds = len({r["seed"] for r in sel})
@@ -112,12 +144,18 @@ def table(rows) -> str:
 
 
 def per_curve(rows) -> str:
-    """Mean share inside per (setting, method, system, slot): where the bands fail."""
+    """Mean share inside per (setting, method, system, slot): where the bands fail; where the rows
+    have them, the plain Laplace band's share and its mean |error| / half-width (bias or spread)."""
     keys = sorted({(r["setting"], r["method"], r["system"], s) for r in rows if "inside" in r for s in r["inside"]})
-    out = ["| setting | method | system | curve | grid inside (mean) | seeds |", "|---|---|---|---|---|---|"]
+    out = ["| setting | method | system | curve | grid inside (mean) | plain Laplace band | "
+           "plain: mean abs error / half-width | seeds |", "|---|---|---|---|---|---|---|---|"]
     for st, m, sy, s in keys:
-        v = [r["inside"][s] for r in rows if (r["setting"], r["method"], r["system"]) == (st, m, sy) and "inside" in r]
-        out.append(f"| {st} | {m} | {sy} | {s} | {np.mean(v):.3f} | {len(v)} |")
+        sel = [r for r in rows if (r["setting"], r["method"], r["system"]) == (st, m, sy) and "inside" in r]
+        v = [r["inside"][s] for r in sel]
+        p = [r["inside_plain"][s] for r in sel if "inside_plain" in r]
+        e = [r["error_over_half_width"][s] for r in sel if "error_over_half_width" in r]
+        out.append(f"| {st} | {m} | {sy} | {s} | {np.mean(v):.3f} | {f'{np.mean(p):.3f}' if p else '–'} | "
+                   f"{f'{np.mean(e):.2f}' if e else '–'} | {len(v)} |")
     return "\n".join(out)
 
 
@@ -126,25 +164,49 @@ def main(argv=None) -> int:
     p.add_argument("--seeds", default="0-4", help="e.g. 0-9")
     p.add_argument("--report-only", action="store_true")
     p.add_argument("--per-curve", action="store_true")
+    p.add_argument("--half", default="report", choices=("report", "tuning"))
+    p.add_argument("--methods", default=",".join(METHODS), help=f"comma-separated, of {', '.join(ALL_METHODS)}")
+    p.add_argument("--settings", default=",".join(SETTINGS))
+    p.add_argument("--systems", default="", help="comma-separated zoo systems (default: all of the half)")
+    p.add_argument("--out", default=RESULTS, help="results file (JSON lines)")
+    p.add_argument("--lof-level", type=float, default=None, help="tuning: the lack-of-fit term's test level")
+    p.add_argument("--lof-bins", type=int, default=None, help="tuning: the lack-of-fit term's bins")
+    p.add_argument("--gate", type=float, default=None,
+                   help="tables: the term only where the binned test's p is below this (default: the library's "
+                        "LACK_OF_FIT_LEVEL; exact for rows run at that level or a laxer one)")
     a = p.parse_args(argv)
+    if a.lof_level is not None or a.lof_bins is not None:  # tuning runs (the tuning half only)
+        import charcurves.fitting._lack_of_fit as lof
+
+        lof.LACK_OF_FIT_LEVEL = lof.LACK_OF_FIT_LEVEL if a.lof_level is None else a.lof_level
+        lof.LACK_OF_FIT_BINS = lof.LACK_OF_FIT_BINS if a.lof_bins is None else a.lof_bins
     lo, _, hi = a.seeds.partition("-")
     seeds = range(int(lo), int(hi or lo) + 1)
+    methods = tuple(a.methods.split(","))
+    out = a.out
     if not a.report_only:
         import torch
 
         torch.set_num_threads(1)
-        os.makedirs(os.path.dirname(RESULTS), exist_ok=True)
-        done = {r["key"] for r in load_rows()}
+        os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
+        done = {r["key"] for r in load_rows(out)}
         cache: dict = {}
-        for job in jobs(seeds):
+        for job in jobs(seeds, a.half, methods, tuple(a.settings.split(",")), [s for s in a.systems.split(",") if s]):
             if "|".join(map(str, job)) in done:
                 continue
             row = run_job(job, cache)
-            with open(RESULTS, "a", encoding="utf-8") as fh:
+            with open(out, "a", encoding="utf-8") as fh:
                 fh.write(json.dumps(row) + "\n")
             print(json.dumps(row), flush=True)
-    rows = load_rows()
-    print(table(rows))
+    rows = load_rows(out)
+    from charcurves.fitting import LACK_OF_FIT_LEVEL
+
+    # the term where the library's default adds it (rows run at a laxer level are exact at a stricter one)
+    rows = gated(rows, LACK_OF_FIT_LEVEL if a.gate is None else a.gate)
+    print(table(rows, methods))
+    if any("inside_plain" in r for r in rows):
+        print("\nThe plain Laplace band (no lack-of-fit term) of the same fits:\n")
+        print(table(rows, methods, key="inside_plain"))
     if a.per_curve:
         print(per_curve(rows))
     return 0

@@ -90,6 +90,10 @@ from ._residual_tests import binned_test as binned_test
 from ._residual_tests import binned_tests as binned_tests
 from ._residual_tests import input_correlation as input_correlation
 from ._residual_tests import whiteness as whiteness
+from ._lack_of_fit import LACK_OF_FIT_BINS as LACK_OF_FIT_BINS
+from ._lack_of_fit import LACK_OF_FIT_LEVEL as LACK_OF_FIT_LEVEL
+from ._lack_of_fit import apply_lack_of_fit as apply_lack_of_fit
+from ._lack_of_fit import lack_of_fit_bias as lack_of_fit_bias
 from ._self_check import RESIDUAL_LEVEL as RESIDUAL_LEVEL
 from ._self_check import RESIDUAL_MIN_EFFECT as RESIDUAL_MIN_EFFECT
 from ._self_check import residual_check as residual_check

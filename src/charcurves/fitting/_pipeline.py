@@ -265,6 +265,7 @@ def _harmonic_terms(model, layout) -> dict:
 def _check(est, ctx, model, raw, k: int) -> None:
     """The self-check of one model, with the state's noise carried through the estimated derivatives
     or, for measured derivative columns, through the curves."""
+    from ._lack_of_fit import apply_lack_of_fit
     from ._records import prepare_any
 
     prepared, mask, estimated = ctx["prepared"][k], ctx["masks"][k], bool(ctx["estimated"][k])
@@ -280,6 +281,7 @@ def _check(est, ctx, model, raw, k: int) -> None:
         via = "the curves (errors in variables: noisy measured x and x' columns)"
     self_check(model, prepared, mask, estimated=estimated, snr_db=est.snr_db, state_noise=noise, raw=raw,
                state_noise_via=via)
+    apply_lack_of_fit(model, prepared, mask)  # the bands of curves the residual says are misfitted
 
 
 def _post_sr(est, models, prepared, seeds, stop):

@@ -38,6 +38,7 @@ from ._posterior import uncertainty_summary as uncertainty_summary
 from ._posterior_constants import PlusMinus as PlusMinus
 from ._posterior_constants import closed_form_lines as closed_form_lines
 from ._posterior_constants import constant_sds_of as constant_sds_of
+from ._posterior_lack import LackOfFitPosterior as LackOfFitPosterior
 from ._posterior_store import StoredPosterior as StoredPosterior
 from ._plots import plot_curves as plot_curves
 from ._plots import plot_model as plot_model

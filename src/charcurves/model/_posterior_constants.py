@@ -59,6 +59,7 @@ def constant_sds(model, name: str, post) -> dict | None:
     not span the posterior (or the curve has no closed form, or ``post`` gives no linear map)."""
     import sympy as sp
 
+    post = getattr(post, "inner", post)  # a lack-of-fit term widens the band, not the constants' posterior
     curve = model.curves[name]
     expr = curve.expression()
     if expr is None or not hasattr(post, "curve_factor"):

@@ -1,0 +1,90 @@
+"""The lack-of-fit term of the posterior bands (fitting._lack_of_fit, model._posterior_lack): a band
+of a representation that cannot take the curve's shape covers the truth once the residual's binned
+bias is added; a well-specified fit's band is left as it was."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import charcurves as cc
+from charcurves.fitting import lack_of_fit_bias
+from charcurves.model import LackOfFitPosterior, StoredPosterior
+from charcurves.systems import CurveSystem, get_system
+
+
+def _tanh_record(seed: int):
+    truth = {"f1": lambda v: 0.3 * np.asarray(v), "f2": lambda x: 1.5 * np.tanh(2.0 * np.asarray(x))}
+    system = CurveSystem("separable", truth, forcing=((1.6, 1.0), (0.8, 1.9)), initial=(0.0, 0.0), name="tanh")
+    clean = system.simulate(t_end=60.0, n_points=3000)
+    return truth, clean, cc.corrupt(clean, 30, on="force", seed=seed)
+
+
+def _inside(f, value, sd) -> float:
+    return float(np.mean(np.abs(f - value) <= 1.959963984540054 * sd))
+
+
+@pytest.fixture(scope="module")
+def tanh_fit():
+    truth, clean, record = _tanh_record(seed=3)
+    model = cc.CharacteristicCurves.from_method(method="parametric", basis="f1=z; f2=z, z**3", random_state=0,
+                                                threads=1).fit(record).model_
+    z = np.linspace(float(clean.x.min()), float(clean.x.max()), 200)
+    return truth, model, z
+
+
+def test_a_cubic_for_a_tanh_spring_gets_a_band_that_covers(tanh_fit):
+    truth, model, z = tanh_fit
+    post = model.posterior
+    assert isinstance(post, LackOfFitPosterior) and sorted(post.bias) == ["f2"]  # f1 = 0.3 v is in the basis
+    assert model.info["lack_of_fit_p"]["f2"] < 1e-10 < 1e-3 < model.info["lack_of_fit_p"]["f1"]
+    assert model.info["posterior"].startswith("laplace (least squares) + lack of fit (binned residual): the bands of f2")
+    f = truth["f2"](z)
+    plain = _inside(f, *post.inner.curve_sd("f2", z))
+    wide = _inside(f, *post.curve_sd("f2", z))
+    assert plain < 0.4  # the cubic's band is centred off the tanh: it holds the truth on few points
+    assert wide > 0.9
+    lo, hi = model.curve_band("f2", z)[1:]
+    assert _inside(f, (lo + hi) / 2, (hi - lo) / 2 / 1.959963984540054) == pytest.approx(wide)
+
+
+def test_the_bias_estimate_follows_the_true_bias(tanh_fit):
+    truth, model, _ = tanh_fit
+    c, b = model.posterior.bias["f2"]
+    true_bias = np.abs(truth["f2"](c) - model.curves["f2"](c))
+    assert np.corrcoef(b, true_bias)[0, 1] > 0.8
+    assert 0.5 < np.sqrt(np.mean(b**2) / np.mean(true_bias**2)) < 2.0
+
+
+def test_the_widened_posterior_is_saved_and_sampled_with_its_extra_direction(tanh_fit):
+    _, model, z = tanh_fit
+    stored = StoredPosterior.from_posterior(model.posterior, model)
+    assert stored.rank == np.asarray(model.posterior.inner.curve_factor("f2", z)[1]).shape[1] + 1
+    sd_stored, sd_fit = stored.curve_sd("f2", z)[1], model.posterior.curve_sd("f2", z)[1]
+    assert np.max(np.abs(sd_stored - sd_fit)) < 0.02 * np.max(sd_fit)  # a spline between the stored grid's points
+    assert "lack of fit" in stored.method
+
+
+def test_a_well_specified_fit_keeps_its_band():
+    record = cc.corrupt(get_system("duffing").simulate(), 20, on="force", seed=2)
+    model = cc.CharacteristicCurves.from_method(method="parametric", basis="f1=z; f2=z, z**3", random_state=0,
+                                                threads=1, free_gain=True).fit(record).model_
+    p = model.info["lack_of_fit_p"]
+    assert min(p.values()) > 0.25  # the correct form: the residual is no function of either argument
+    assert not isinstance(model.posterior, LackOfFitPosterior)
+    assert "no lack-of-fit term" in model.info["posterior"]
+    # forced on, the bin means' own noise would widen the spring's band (median factor 3.0 on this seed), and far
+    # more where the gauge pins the curve (the term is not added where the test finds nothing)
+    c, b, _ = lack_of_fit_bias(model, record, curves=["f2"])["f2"]
+    z = np.linspace(-1.5, 1.5, 100)
+    wide = LackOfFitPosterior(model.posterior, {"f2": (c, b)})
+    ratio = wide.curve_sd("f2", z)[1] / model.posterior.curve_sd("f2", z)[1]
+    assert np.all(ratio >= 1.0) and 2.5 < np.median(ratio) < 3.5
+
+
+def test_the_constants_keep_their_sds_under_the_widened_band(tanh_fit):
+    from charcurves.model import constant_sds_of
+
+    _, model, _ = tanh_fit
+    sds = constant_sds_of(model, "f2")  # the constants' posterior is the plain one: the term is about the band
+    assert sds is not None and len(sds) == 2 and all(0 < v < np.inf for v in sds.values())
