@@ -39,7 +39,9 @@ def duffing_text(data: dict) -> str:
     m = _means(data["rows"], "duffing")
     snrs = sorted({k[2] for k in m}, reverse=True)
     methods = [k for k in m if k[3] == "auto" and k[0] not in (_LIMIT, _PEER)]
-    to_limit, peer, starts = [], [], []
+    to_limit: list[str] = []
+    peer: list[str] = []
+    starts: list[str] = []
     for snr in snrs:
         limit = next(v for k, v in m.items() if k[0] == _LIMIT and k[2] == snr)
         own = [v for k, v in m.items() if k in methods and k[2] == snr]
