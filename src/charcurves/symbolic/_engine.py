@@ -312,7 +312,17 @@ _MEMO: dict[tuple, SRResult] = {}
 def forget_searches() -> int:
     """Forget the searches remembered in this process; return how many were remembered.
 
-    The next identical search runs again (a spy on the engine sees it, memory is given back)."""
+    The next identical search runs again (a spy on the engine sees it, memory is given back).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from charcurves.symbolic import OperonEngine, forget_searches
+    >>> z = np.linspace(-2, 2, 50)
+    >>> _ = OperonEngine(generations=2).fit(z[:, None], z**2, ["z"], random_state=0)
+    >>> forget_searches() >= 1, forget_searches()  # the search above (and any before it), then none
+    (True, 0)
+    """
     n = len(_MEMO)
     _MEMO.clear()
     return n
