@@ -34,11 +34,11 @@ from ._engine import (
     TANH_OPERATORS,
     OperonEngine,
     SymbolicRegressionEngine,
-    forget_searches,
     operators_option,
     searches_running,
 )
 from ._make import make_engine
+from ._memo import forget_searches
 from ._stoppable import SearchInterrupted
 from ._pysr import PySREngine
 from ._expressions import eval_expression, expression_complexity, parse_infix, polish_constants, split_terms
