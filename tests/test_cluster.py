@@ -20,8 +20,10 @@ from charcurves.experiments import ResultsStore, Sweep, run_sweep  # noqa: E402
 from charcurves.fitting import PRESETS  # noqa: E402
 
 # Ray finds a cluster running on this machine (/tmp/ray): every test that starts or joins one runs on one
-# xdist worker, one after the other (--dist loadgroup in pyproject.toml)
-pytestmark = pytest.mark.xdist_group("ray")
+# xdist worker, one after the other (--dist loadgroup in pyproject.toml). The slow tier: a two-node
+# cluster takes minutes of wall time; the fast tier checks the Ray executor's rows
+# (tests/test_experiments.py) and a selection fitted as Ray tasks (tests/test_ray_select.py).
+pytestmark = [pytest.mark.xdist_group("ray"), pytest.mark.slow]
 
 TINY = PRESETS["default"].replace(n_starts=1, adam_steps=20, lm_max_iter=3)
 

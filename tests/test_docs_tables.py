@@ -14,6 +14,9 @@ import pytest
 from charcurves.experiments import docs_tables, fill_table_markers
 from charcurves.experiments._records_prose import records_prose
 
+# module fixtures (tables ~3.7 CPU s) made once: all tests here in one xdist worker (--dist loadgroup)
+pytestmark = pytest.mark.xdist_group("docs_tables")
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 #: each page and the tables it shows (each once)

@@ -11,6 +11,9 @@ from charcurves.curves import BasisFittedCurve, SymbolicFittedCurve
 from charcurves.metrics import largest_lyapunov_exponent
 from charcurves.simulate import prepare_curve
 
+# module fixtures (duffing_nn_model ~2.1 CPU s) made once: all tests here in one xdist worker (--dist loadgroup)
+pytestmark = pytest.mark.xdist_group("dynamics")
+
 TIGHT = {"rtol": 1e-11, "atol": 1e-13}  # finite-time exponents of a chaotic orbit are tolerance-sensitive
 
 

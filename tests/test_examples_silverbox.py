@@ -11,6 +11,9 @@ from pathlib import Path
 
 import pytest
 
+# quick_run (~30 CPU s) is made once: every test of this module in one xdist worker (--dist loadgroup)
+pytestmark = pytest.mark.xdist_group("silverbox")
+
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "examples" / "silverbox.py"
 PUBLISHED = {"c": 41.0, "k1": 1.850e5, "k3": 7.47e5, "g": 1.947e5}

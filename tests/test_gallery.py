@@ -20,6 +20,10 @@ from pathlib import Path
 
 import pytest
 
+# the scripts' runs (the module fixture below, ~40 CPU s) are made once: every test of this module in one
+# xdist worker (--dist loadgroup), not once in each worker that draws one of them
+pytestmark = pytest.mark.xdist_group("gallery")
+
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 GALLERY = ROOT / "docs" / "gallery.md"

@@ -42,9 +42,11 @@ def _interrupt_on_tick(n: int, phase: str = "sr search"):
 
 
 class _CountSearches:
-    """Counts the Operon searches (a spy: the real search runs)."""
+    """Counts the Operon searches (a spy: the real search runs). The searches remembered in this process
+    are forgotten first: one that an earlier test in this worker ran would be answered without a search."""
 
     def __init__(self, monkeypatch):
+        forget_searches()
         self.calls = 0
         real = OperonEngine._search
 

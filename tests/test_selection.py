@@ -171,6 +171,8 @@ def test_select_first_order_runs_all_three_loops_and_the_outer_loop_catches_a_wr
     assert max(bad.figures["separation_fraction"]) < 0.1
 
 
+@pytest.mark.slow  # ~23 CPU s of two-dof forward runs; the fast tier keeps the two-dof outer loop passing on
+# held-out records (test_cli_select_two_dof_records) and the outer loop catching a wrong model (first order)
 def test_outer_loop_two_dof_follows_held_out_records_and_rejects_a_self_exciting_model():
     starts = [{}, {"x10": -0.4, "x20": 0.6, "A1": 0.8, "A2": 0.9}]  # other initial states and forcings
     recs = [corrupt_forces(get_system("two-dof", **kw).simulate(t_end=50.0, n_points=1000), 25, seed=k)

@@ -79,6 +79,8 @@ def test_fit_with_post_sr_equals_the_two_fits_done_apart(duffing, base, preset, 
             assert "output_error" not in closed.info and "output_error_before_post_sr" not in closed.info
 
 
+@pytest.mark.slow  # ~11 CPU s, the default nn-cc on a 40 dB record; the fast tier checks that post-SR distils
+# the curves output error refined in test_fit_with_post_sr_equals_the_two_fits_done_apart[nn-cc-...-state]
 def test_post_sr_of_a_measured_record_distils_the_output_error_curves():
     """Appendix F's Duffing record at 40 dB (noise on x, realisation 0, as the benchmark draws it).
     Post-SR used to distil the equation-error networks, whose curves carry the differentiated noise:

@@ -12,6 +12,9 @@ from charcurves.metrics import largest_lyapunov_exponent, separation_time, traje
 from charcurves.simulate import simulate_model, sinusoidal_forcing
 from charcurves.templates import get_template
 
+# module fixtures (the fitted models ~4.5 CPU s) made once: all tests here in one xdist worker (--dist loadgroup)
+pytestmark = pytest.mark.xdist_group("simulate")
+
 
 def symbolic_model(f1, f2, gain=1.0, offset=0.0, domain=(-2, 2)):
     curves = {"f1": SymbolicFittedCurve("f1", "x'", domain, f1), "f2": SymbolicFittedCurve("f2", "x", domain, f2)}

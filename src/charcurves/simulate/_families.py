@@ -143,12 +143,16 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
         args = [values[n] for n in names]
         m = len(next(iter(values.values())))
         out = np.empty((len(eqs), m))
+
+        def full(v):  # (m,) values; np.broadcast_to costs more than the call itself on a vector already (m,)
+            return v if isinstance(v, np.ndarray) and v.shape == (m,) else np.broadcast_to(v, (m,))
+
         for e, q in enumerate(eqs):
-            r = np.broadcast_to(q["known"](*args), (m,)) - gain * np.broadcast_to(q["input"](*args), (m,)) + q["offset"]
+            r = full(q["known"](*args)) - gain * full(q["input"](*args)) + q["offset"]
             for curve, arg, coef in q["curves"]:
-                r = r + np.broadcast_to(coef(*args), (m,)) * curve(np.broadcast_to(arg(*args), (m,)))
+                r = r + full(coef(*args)) * curve(full(arg(*args)))
             for value, sig in q["scalars"]:
-                r = r + value * np.broadcast_to(sig(*args), (m,))
+                r = r + value * full(sig(*args))
             out[e] = r
         return out
 
