@@ -92,7 +92,9 @@ class LackOfFitPosterior:
 
     def scalar_factor(self) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
         names, mean, G, inf = self.inner.scalar_factor()
-        G = np.asarray(G, dtype=float).reshape(len(names), -1)
+        G = np.asarray(G, dtype=float)
+        if G.ndim != 2:  # no scalar at all: an empty factor
+            G = G.reshape(len(names), -1) if len(names) else G.reshape(0, 0)
         return names, mean, np.hstack([G, np.zeros((G.shape[0], len(self._order)))]), inf
 
     def simultaneous_factor(self, grids: dict, level: float = 0.95, draws: int = 4000) -> float:
