@@ -73,8 +73,8 @@ class OutputError(Objective):
         ``tol``). Default: 40 for templates of one equation whose curves enter additively (the
         separable family: more iterations let free networks fit the noise), 120 where a curve is
         multiplied by a state (van der Pol's ``f1(x) x'``, the first-order family's ``f2(x) x'``) or
-        the template couples equations (two-DOF), whose fits converge slowly. Every template gets
-        Nielsen's damping rule (docs/measured-records.md, docs/zoo.md).
+        the template couples equations (two-DOF), whose fits converge slowly; those templates also
+        get Nielsen's damping rule (docs/measured-records.md, docs/zoo-defaults.md).
     tol : float
         A member stops when the relative decrease of its loss summed over its last 4 iterations is
         below this, or at once at a step whose loss changed by less than this (relative) where the

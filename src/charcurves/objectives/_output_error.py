@@ -250,7 +250,7 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
     theta, log = train(problem, theta0, adam_steps=0, adam_lr=0.0, lm_max_iter=max_iter,
                        lm_tol=float(settings.tol), stop_loss=0.0, progress=progress, lm_window=STOP_WINDOW,
                        lm_deadline=time.monotonic() + float(settings.time_budget) - (time.perf_counter() - started),
-                       lm_nielsen=True, evidence_sweeps=EVIDENCE_SWEEPS)
+                       lm_nielsen=slow, evidence_sweeps=EVIDENCE_SWEEPS)
     for i, name in enumerate(template.curve_names):
         if name in free_width:  # a trained width near RK4's floor is Coulomb's sign; a wider one is kept
             j, floor = free_width[name]
@@ -295,7 +295,7 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
         "evidence_sweeps_undone": log.sweeps_undone,
         "networks_revived": revived,
         "pruned_networks": pruned,
-        "damping": "nielsen",
+        "damping": "nielsen" if slow else "fixed factors",
         "segmented_rmse_before": seg_before, "segmented_rmse_after": seg_after,
         "loss_before": float(loss0.double().min()), "loss_after": float(loss[best]),
         "member_selection": "AIC within 2 (Bayesian effective parameters)" if crit is not None else
@@ -346,7 +346,7 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
 def slow_template(fm) -> bool:
     """True when a curve of the template is multiplied by a state (van der Pol's ``f1(x) x'``, the
     first-order family's ``f2(x) x'``) or the template couples several equations (two-DOF): there
-    the output-error fit converges slowly, and gets more iterations (every template gets Nielsen's damping; see
+    the output-error fit converges slowly, and gets more iterations and Nielsen's damping (see
     :class:`OutputError`; docs/measured-records.md has the measurements)."""
     if fm.divides or len(fm.equations) > 1:  # divides: a curve is a factor of the highest derivative
         return True
