@@ -56,7 +56,7 @@ def two_tank(start: str, n_starts: int, seed: int, anchored: bool = False, neura
     # (powers 1..5, or 1..degree where --degree is given)
     basis = ", ".join(["z"] + [f"z**{k}" for k in range(2, int(fit.get("degree", 5)) + 1)])
     curves = {n: Basis(basis) for n in ("f1", "f2")} if anchored else {}
-    if neural:  # networks (fitting._hidden_neural: the polynomial stages, then a stage of the networks)
+    if neural:  # networks (statespace._neural: the polynomial stages, then a stage of the networks)
         curves = {n: Neural() for n in ("f1", "f2")}
     template = StateSpace("x1' = g*F - f1(x1); x2' = f1(x1) - f2(x2)", measured={"x2": "x"}, **curves)
     t0 = time.perf_counter()

@@ -29,7 +29,7 @@ def _tank_fit(**kw):
 
 
 def test_ctrl_c_after_the_first_stage_keeps_that_stage_and_says_so(monkeypatch):
-    from charcurves.fitting import _hidden
+    from charcurves.statespace import _fit as _hidden
 
     _, full = _tank_fit(schedule=(16,))
     real, calls = _hidden._renormalise, []
@@ -53,7 +53,7 @@ def test_ctrl_c_after_the_first_stage_keeps_that_stage_and_says_so(monkeypatch):
 
 
 def test_ctrl_c_before_any_stage_finished_is_raised(monkeypatch):
-    from charcurves.fitting import _hidden
+    from charcurves.statespace import _fit as _hidden
 
     def interrupt(c, u, linear):
         raise KeyboardInterrupt
@@ -64,7 +64,7 @@ def test_ctrl_c_before_any_stage_finished_is_raised(monkeypatch):
 
 
 def test_a_trainer_stopped_by_ctrl_c_ends_the_fit_at_that_stage(monkeypatch):
-    from charcurves.fitting import _hidden
+    from charcurves.statespace import _fit as _hidden
 
     real = _hidden._stage
 

@@ -160,8 +160,8 @@ def test_a_fit_reports_its_cpu_seconds_and_iterations_per_stage_with_degree_10_c
 
 
 def test_bouc_wen_start_scales_the_hidden_state_by_the_force_and_lets_it_move():
-    from charcurves.fitting import _hidden as H
-    from charcurves.fitting._hidden_model import record_table
+    from charcurves.statespace import _fit as H
+    from charcurves.statespace._model import record_table
     from charcurves.templates import ForwardModel
 
     system = BoucWen()

@@ -33,7 +33,7 @@ def cmd_fit_hidden(a):
     measured = parse_measured(a.measured)
     template = StateSpace(a.equation, measured=measured, free_gain=bool(a.free_gain))
     structure = template.structure()
-    if getattr(a, "method", None) == "nn-cc":  # a network per curve (fitting._hidden_neural)
+    if getattr(a, "method", None) == "nn-cc":  # a network per curve (statespace._neural)
         from ..curves import Neural
 
         template = StateSpace(a.equation, measured=measured, free_gain=bool(a.free_gain),

@@ -42,7 +42,7 @@ from ._methods import shared_fit_base as shared_fit_base
 from ..model import FORMAT_VERSION as FORMAT_VERSION
 from ..model import MODEL_SCHEMA as MODEL_SCHEMA
 from ..model import FittedModel as FittedModel
-from ._hidden_model import load_model as load_model
+from ..statespace import load_model as load_model
 from ..model import validate_model_document as validate_model_document
 from ..model import check_model_digest as check_model_digest
 from ..model import model_digest as model_digest
@@ -119,8 +119,8 @@ from ..model import model_html as model_html
 from ..model import output_error_rows as output_error_rows
 from ..model import settings_rows as settings_rows
 from ..model import anchor_notes as anchor_notes
-from ._hidden import START_NAMES as START_NAMES
-from ._hidden import fit_state_space as fit_state_space
-from ._hidden_model import StateSpaceModel as StateSpaceModel
-from ._hidden_window import estimate_window_state as estimate_window_state
-from ._hidden_window import window_free_run_error as window_free_run_error
+from ..statespace import START_NAMES as START_NAMES
+from ..statespace import fit_state_space as fit_state_space
+from ..statespace import StateSpaceModel as StateSpaceModel
+from ..statespace import estimate_window_state as estimate_window_state
+from ..statespace import window_free_run_error as window_free_run_error

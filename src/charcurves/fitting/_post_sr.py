@@ -13,16 +13,13 @@ import time
 import numpy as np
 
 from ..curves import SymbolicFittedCurve
-from ..symbolic import distill_curve_front, expression_complexity, operators_option, post_sr_engine
+from ..symbolic import DATA_LOSS_TOLERANCE, distill_curve_front, expression_complexity, operators_option, post_sr_engine
 from ..templates import sticking_mask
 from ..model import FittedModel
 
 __all__ = ["distill_model", "DATA_LOSS_TOLERANCE"]
 
 
-#: A distilled model may fit the training record this much worse (relative data loss) than the
-#: model it distils before a curve is replaced by a more accurate member of its front.
-DATA_LOSS_TOLERANCE = 0.05
 
 
 def _guard_data_loss(model, curves: dict, fronts: dict, traj) -> None:

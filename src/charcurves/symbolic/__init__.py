@@ -23,7 +23,7 @@ Examples
 """
 
 from ._decompose import decompose
-from ._distill import (CLOSED_FORM_GAIN, POST_SR_OPTIONS, TRIG_TURNS, distill_curve, distill_curve_front, has_jump,
+from ._distill import (CLOSED_FORM_GAIN, DATA_LOSS_TOLERANCE, POST_SR_OPTIONS, TRIG_TURNS, distill_curve, distill_curve_front, has_jump,
                        polynomial_operators, post_sr_engine, turns)
 from ._engine import (
     CLOSED_FORM_OPERATORS,
@@ -51,6 +51,7 @@ __all__ = [
     "OPERATORS",
     "POLY_OPERATORS",
     "POST_SR_OPTIONS",
+    "DATA_LOSS_TOLERANCE",
     "SELECTION_CRITERIA",
     "SR_OPTION_KEYS",
     "TRIG_TURNS",

@@ -42,7 +42,7 @@ from ._selection import REL_MSE_FLOOR
 from ._engine import CLOSED_FORM_OPERATORS, POLY_OPERATORS, TANH_OPERATORS, SymbolicRegressionEngine
 from ._make import make_engine
 
-__all__ = ["distill_curve", "distill_curve_front", "has_jump", "turns", "TRIG_TURNS", "POST_SR_OPTIONS",
+__all__ = ["distill_curve", "distill_curve_front", "has_jump", "turns", "TRIG_TURNS", "POST_SR_OPTIONS", "DATA_LOSS_TOLERANCE",
            "post_sr_engine", "polynomial_operators", "CLOSED_FORM_GAIN"]
 
 #: Search settings of post-SR that differ from :data:`DEFAULT_SR_OPTIONS` (``sr_options`` given to a
@@ -55,6 +55,11 @@ __all__ = ["distill_curve", "distill_curve_front", "has_jump", "turns", "TRIG_TU
 #: the RMSE against the true curve is the same (geometric mean of the ratios 0.996, largest 1.06,
 #: mean 0.0380 against 0.0393). 200 points and 20 generations: 0.37 s, 142 of 144, ratios 1.000.
 POST_SR_OPTIONS: dict[str, Any] = {"generations": 20, "max_points": 100}
+
+#: A distilled model may fit the training record this much worse (relative data loss) than the
+#: model it distils before a curve is replaced by a more accurate member of its front (post-SR of
+#: the separable family and of state-space templates).
+DATA_LOSS_TOLERANCE = 0.05
 
 
 def post_sr_engine(sr_options: dict | None = None) -> SymbolicRegressionEngine:

@@ -30,8 +30,8 @@ import numpy as np
 
 from .._errors import ConfigError, DataError
 from ..objectives import choose_substeps
-from ._hidden_curves import _Curve, _pinned, _representations
-from ._hidden_model import StateSpaceModel, build_problem, record_table, simulate_states
+from ._curves import _Curve, _pinned, _representations
+from ._model import StateSpaceModel, build_problem, record_table, simulate_states
 
 __all__ = ["fit_state_space", "START_NAMES"]
 
@@ -52,7 +52,7 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
         The template, its measured map and curve representations (unset: polynomials of ``degree``,
         default 10 as :class:`~charcurves.curves.Polynomial`; curves anchored at 0 get a basis
         without a constant; :class:`~charcurves.curves.Neural` curves run the stages as such
-        polynomials and then a stage of their own, :mod:`._hidden_neural`).
+        polynomials and then a stage of their own, :mod:`._neural`).
     record : Trajectory or MultiTrajectory
         Uniformly sampled; the measured map names its columns (``x`` of a Trajectory, ``x1``... of
         a MultiTrajectory) and the template's forcings must be among its columns.
@@ -77,7 +77,7 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
         does not grow like ``s**degree``; about 3x the CPU time (measured on a 300-sample two-tank fit).
     post_sr : bool
         Distil each curve of the best start into a closed form and refit the constants by output
-        error (:mod:`._hidden_post_sr`; ``info["post_sr"]``). ``sr_options``: as
+        error (:mod:`._post_sr`; ``info["post_sr"]``). ``sr_options``: as
         :func:`~charcurves.fitting.distill_model`'s.
 
     Returns
@@ -114,9 +114,9 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     if extrapolation not in ("polynomial", "linear"):
         raise ConfigError(f"unknown extrapolation {extrapolation!r}; choose 'polynomial' or 'linear'")
     continued = extrapolation == "linear"
-    from ._hidden_neural import check_anchors, curve_kind, split_representations, with_domain
+    from ._neural import check_anchors, curve_kind, split_representations, with_domain
 
-    # networks (targets) run the stages as polynomials, then one stage of their own (._hidden_neural)
+    # networks (targets) run the stages as polynomials, then one stage of their own (._neural)
     reps, targets = split_representations(template, structure, degree, continued, lambda given: _representations(
         template, structure, degree, continued, given))
     pinned_of = {n: bool(targets[n].pinned_at_zero if n in targets else r.pinned_at_zero) for n, r in reps.items()}
@@ -185,13 +185,13 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
                       continuity, scale, max(started + time_budget, time.perf_counter() + 0.25 * time_budget))
 
     if targets and not interrupted:
-        from ._hidden_neural import network_stage
+        from ._neural import network_stage
 
         shared, traj, gain, scalars, loss, interrupted = network_stage(run, arg, shared, targets, traj, gain, scalars,
                                                                        loss, seed, log, started, progress)
     best_start, post = None, None
     if post_sr and not interrupted:
-        from ._hidden_post_sr import post_sr_stage
+        from ._post_sr import post_sr_stage
 
         best_start = int(np.argmin(np.where(np.isfinite(loss), loss, np.inf)))
         shared = [with_domain(c, arg(c, traj)) for c in shared]  # distilled over the range the states visit

@@ -2,7 +2,7 @@
 
 :func:`build_problem` lays a record out as the multiple-shooting problem of output error
 (:class:`~._shooting.ShootingProblem`) for a state-space template; :func:`simulate_states` runs it
-forward; :class:`StateSpaceModel` is what :func:`~._hidden.fit_state_space` returns.
+forward; :class:`StateSpaceModel` is what :func:`~._fit.fit_state_space` returns.
 """
 
 from __future__ import annotations

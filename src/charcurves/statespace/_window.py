@@ -1,7 +1,7 @@
 """The benchmarks' initialisation window for models with hidden states.
 
 The nonlinear benchmarks estimate a test record's initial state from its first N samples only and
-count the RMSE after them. For a :class:`~._hidden_model.StateSpaceModel` the initial state holds
+count the RMSE after them. For a :class:`~._model.StateSpaceModel` the initial state holds
 every ODE state, hidden ones included: :func:`estimate_window_state` fits it by the model's own free
 run over the window (a small least-squares problem, ``scipy.optimize.least_squares``, one parameter
 per ODE state); :func:`window_free_run_error` then free-runs the whole record from it and counts the
@@ -37,7 +37,7 @@ def check_window(init_window, n: int) -> int:
 
 def _runner(model, cols, dt, n):
     """``run(y0 (B, D)) -> (B, n, D)``: free runs of the first ``n`` samples from ``B`` initial states."""
-    from ._hidden_model import _Simulated, simulate_states
+    from ._model import _Simulated, simulate_states
 
     fm = model._forward()
     head = {k: np.asarray(v, dtype=float)[:n] for k, v in cols.items()}
@@ -107,7 +107,7 @@ def estimate_window_state(model, record, n_fit: int) -> dict[str, float]:
     """
     from scipy.optimize import least_squares
 
-    from ._hidden_model import record_table
+    from ._model import record_table
 
     cols, dt = record_table(record, model.info["measured"], model.structure.forces)
     n = check_window(n_fit, len(cols["t"]))
@@ -167,7 +167,7 @@ def window_free_run_error(model, record, init_window: int) -> tuple[dict[str, fl
     >>> sorted(rmse), sorted(initial)
     (['x2'], ['x1', 'x2'])
     """
-    from ._hidden_model import record_table
+    from ._model import record_table
 
     cols, _ = record_table(record, model.info["measured"], model.structure.forces)
     skip = check_window(init_window, len(cols["t"]))

@@ -1,4 +1,4 @@
-"""The curves of a hidden-state fit across its seeded starts (:func:`~._hidden.fit_state_space`):
+"""The curves of a hidden-state fit across its seeded starts (:func:`~._fit.fit_state_space`):
 representation, per-row argument normalisation and coefficients, and the fitted curves they give."""
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ a curve the gauge anchors at 0 keeps ``f(0) = 0`` (its form minus its value at 0
 constants move). Then every numeric constant of the closed forms
 (:class:`~charcurves.curves.SymbolicParametrisation`), the scalars, the gain and the segments'
 initial states are trained together by one more stage of output error at the last segment length
-(:func:`~._hidden.fit_state_space`). ``info["post_sr"]`` gives each curve's form before and after
+(:func:`~._fit.fit_state_space`). ``info["post_sr"]`` gives each curve's form before and after
 the refit and the data loss before distillation, after it and after the refit.
 """
 
@@ -21,9 +21,8 @@ from typing import Any
 import numpy as np
 
 from ..curves import SymbolicFittedCurve, SymbolicParametrisation
-from ..symbolic import distill_curve_front, operators_option, post_sr_engine
-from ._hidden_neural import _ParamCurve
-from ._post_sr import DATA_LOSS_TOLERANCE
+from ..symbolic import DATA_LOSS_TOLERANCE, distill_curve_front, operators_option, post_sr_engine
+from ._neural import _ParamCurve
 
 __all__: list[str] = []
 

@@ -1,6 +1,6 @@
 """Curves of hidden-state fits that are not linear in their parameters: networks and closed forms.
 
-:func:`~._hidden.fit_state_space` trains its stages on curves linear in their parameters (exact
+:func:`~._fit.fit_state_space` trains its stages on curves linear in their parameters (exact
 re-expression on a new range, linear starts). A curve given as :class:`~charcurves.curves.Neural`
 runs those stages as a polynomial of the fit's degree (its start); after the last stage each such
 curve becomes its network by least squares on the polynomial's values over the range the states
@@ -8,7 +8,7 @@ now visit (one batched Levenberg-Marquardt of :mod:`charcurves.train` per curve)
 stage of output error at the last segment length trains the networks with every other parameter
 (the Jacobian of the networks is :meth:`~charcurves.curves.NeuralCurve.evaluate_all`'s, the same
 as the separable family's output error). Closed forms from post-SR go through the same stage
-(:mod:`._hidden_post_sr`).
+(:mod:`._post_sr`).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import torch
 from .._errors import ConfigError
 from ..curves import LinearCurve, Neural, NeuralFittedCurve, Polynomial, Symbolic
 from ..train import LeastSquaresProblem, train
-from ._hidden_curves import _Curve
+from ._curves import _Curve
 
 __all__: list[str] = []
 
