@@ -11,7 +11,7 @@ from charcurves.experiments import docs_tables, fill_table_markers
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "docs" / name for name in ("benchmark.md", "measured-records.md", "training-defaults.md", "silverbox.md",
-                                                "differentiators.md")]
+                                                "differentiators.md", "choosing.md")]
 
 
 def main(argv):

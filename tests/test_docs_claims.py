@@ -343,26 +343,6 @@ def test_no_page_names_an_api_that_does_not_exist():
             assert kw in params or takes_any, f"{page.name}: {name}() has no {kw}="
 
 
-def test_the_equation_error_penalty_range_is_the_committed_one():
-    """choosing.md quotes the range of equation error's mean worst-curve RMSE over output error's (the same
-    method and differentiator) from benchmarks/results/state_noise.json (measured-records.md renders it:
-    tests/test_docs_tables.py)."""
-    import collections
-    import json
-
-    rows = json.loads((ROOT / "benchmarks" / "results" / "state_noise.json").read_text())["rows"]
-    runs = collections.defaultdict(list)
-    for r in rows:
-        runs[(r["system"], r["snr"], r["label"], r["objective"], r["differentiator"])].append(r["worst"])
-    mean = {k: float(np.mean(v)) for k, v in runs.items()}
-    ratios = [mean[k] / mean[k[:3] + ("auto", k[4])] for k in mean
-              if k[3] == "equation-error" and k[:3] + ("auto", k[4]) in mean]
-    quoted = f"{min(ratios):.1f}–{max(ratios):.1f}×"
-    assert f"Equation error alone is {quoted} worse" in _page("choosing.md"), quoted
-
-
-@pytest.mark.skipif(not (STUDY.exists() and SCRIPTS_DUFFING.exists() and PAPER_CPU.exists()),
-                    reason="the committed runs are not in this checkout")
 def test_the_typed_figures_of_the_benchmark_page_are_the_committed_ones():
     """The figures docs/benchmark.md states in its prose (its tables are rendered: test_docs_tables.py)."""
     import json
