@@ -36,12 +36,11 @@ def test_only_pruned_members_restart_small_and_the_rest_is_kept():
     np.testing.assert_array_equal(again, new)
 
 
-@pytest.fixture(scope="module")
-def pruned_sinh():
-    """x'' + 0.1 x' + 0.05 x'^3 + 0.5 sinh(2 x) = F, 40 dB on x; a quick nn-cc fit with a cubic beside
-    each network, whose f2 network is then zeroed, as equation error's evidence leaves it when the
-    cubic takes over: f2 is its linear and cubic terms alone, which cannot hold sinh's x^5."""
-    system = CurveSystem("separable", {"f1": lambda v: 0.1 * v + 0.05 * v**3, "f2": lambda x: 0.5 * np.sinh(2 * x)},
+def _pruned_f2(f2):
+    """x'' + 0.1 x' + 0.05 x'^3 + f2(x) = F, 40 dB on x; a quick nn-cc fit with a cubic beside each
+    network, whose f2 network is then zeroed, as equation error's evidence leaves it when the cubic
+    takes over: ``(model, prepared, measured, preset, clean)``."""
+    system = CurveSystem("separable", {"f1": lambda v: 0.1 * v + 0.05 * v**3, "f2": f2},
                          forcing=[(1.2, 1.2), (0.6, 2.2)], initial=(0.0, 0.0))
     clean = system.simulate(t_end=40.0, n_points=600)
     measured = cc.corrupt(clean, 40, on="state", seed=0)
@@ -53,6 +52,13 @@ def pruned_sinh():
     theta[:, :f2.spec.mlp.n_params] = 0.0
     model.curves["f2"] = NeuralFittedCurve(f2.name, f2.argument, f2.domain, f2.spec, theta, f2.in_scale,
                                            f2.out_scale, f2.shift)
+    return model, prepared, measured, preset, clean
+
+
+@pytest.fixture(scope="module")
+def pruned_sinh():
+    """f2 = 0.5 sinh(2 x): its linear and cubic terms alone cannot hold sinh's x^5."""
+    model, prepared, measured, preset, clean = _pruned_f2(lambda x: 0.5 * np.sinh(2 * x))
     sigma = float(np.std(np.asarray(measured.x) - np.asarray(clean.x)))
     return model, prepared, measured, preset, sigma
 
@@ -135,18 +141,7 @@ def test_a_pruned_network_is_not_revived_where_the_terms_beside_it_reach_the_noi
     reaches the noise without it, and reviving it would only let it fit the noise (on Duffing's
     records from Savitzky-Golay the worst curve went from 7.0e-4 to 1.4e-3). It is not revived, and
     the report says why with the ratio."""
-    system = CurveSystem("separable", {"f1": lambda v: 0.1 * v + 0.05 * v**3, "f2": lambda x: x + 0.5 * x**3},
-                         forcing=[(1.2, 1.2), (0.6, 2.2)], initial=(0.0, 0.0))
-    clean = system.simulate(t_end=40.0, n_points=600)
-    measured = cc.corrupt(clean, 40, on="state", seed=0)
-    preset = get_preset("default").replace(n_starts=1, powers=(3,), harmonics=())
-    est = cc.CharacteristicCurves.from_method(method="nn-cc", preset=preset, random_state=0, threads=1)
-    [model], [prepared] = raw_fit(est, [measured])
-    f2 = model.curves["f2"]
-    theta = f2.theta.copy()
-    theta[:, :f2.spec.mlp.n_params] = 0.0
-    model.curves["f2"] = NeuralFittedCurve(f2.name, f2.argument, f2.domain, f2.spec, theta, f2.in_scale,
-                                           f2.out_scale, f2.shift)
+    model, prepared, measured, preset, _ = _pruned_f2(lambda x: x + 0.5 * x**3)
     oe = output_error_fit(model, prepared, measured, OutputError(segment_length=32, substeps=2, max_iter=40),
                           preset=preset).info["output_error"]
     assert "f2" in oe["pruned_networks"] and oe["networks_revived"] == {}  # f1 (linear + cubic) too
