@@ -10,14 +10,19 @@ before, so those fits are unchanged to the last bit.
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from charcurves.curves import Neural, NeuralCurve, NeuralFittedCurve, neural_input_map
 from charcurves.data import Trajectory, corrupt
 from charcurves.fitting import CharacteristicCurves, anchor_notes
-from charcurves.metrics import curve_rmse
 from charcurves.systems import get_system
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import bench_units  # noqa: E402
 
 #: the factor within which the shifted record's nRMSE must stay of the plain record's (seed 0:
 #: measured 1.06 on f1 and 1.35 on f2; over seeds 1-3 the ratio spans 0.49-1.26, the fits' own spread)
@@ -39,15 +44,9 @@ def _units(rec, c: float, d: float) -> Trajectory:
 
 def _nrmse(model, system, clean, c: float, d: float) -> dict[str, float]:
     """RMSE against the true curves mapped into the new units (c f1(V / c), c f2(X / c - d)), up to a
-    constant (the gauge), over the clean record's range, over the std of the truth there."""
-    truth = {"f1": lambda V: c * system.f1(V / c), "f2": lambda X: c * system.f2(X / c - d)}
-    spans = {"f1": c * np.asarray(clean.v), "f2": c * (np.asarray(clean.x) + d)}
-    out = {}
-    for name, f in truth.items():
-        lo, hi = float(spans[name].min()), float(spans[name].max())
-        out[name] = (curve_rmse(model.curves[name], f, domain=(lo, hi), align="mean")
-                     / float(np.std(f(np.linspace(lo, hi, 1000)))))
-    return out
+    constant (the gauge), over the clean record's range, over the std of the truth there: the score of
+    benchmarks/bench_units.py, the same function."""
+    return bench_units.score(model, system, clean, c, d)
 
 
 @pytest.fixture(scope="module")
