@@ -451,3 +451,20 @@ def test_a_benchmark_interrupted_after_its_sweep_names_the_stored_rows(tmp_path,
     assert code == 130 and n_rows == 1
     assert err == (f"charcurves: interrupted; the rows finished so far are stored in {store}; rerun the same command "
                    "to resume (or add --report-only to build the report from them)\n")
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_while_the_program_shuts_down_exits_at_once_without_a_traceback(tmp_path, sig):
+    """CI once saw the second of two signals land after the command had returned, in an exit handler of
+    torch: "Exception ignored in atexit callback ... KeyboardInterrupt" (SIGTERM: exit 143)."""
+    script = ("import atexit, os, sys, time\n"
+              "from charcurves.cli import main\n"
+              f"atexit.register(lambda: (os.kill(os.getpid(), {int(sig)}), time.sleep(30)))\n"
+              "sys.exit(main())\n")
+    out = tmp_path / "d.csv"
+    t0 = time.monotonic()
+    proc = subprocess.run([sys.executable, "-c", script, "simulate", "duffing", "--n-points", "200", "--out", str(out)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and "Traceback" not in proc.stderr and "Exception ignored" not in proc.stderr, proc.stderr
+    assert time.monotonic() - t0 < 25  # the exit handler's 30 s sleep was cut short by the signal
+    assert out.read_text().startswith("t,")

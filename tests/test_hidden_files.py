@@ -78,6 +78,45 @@ def test_a_trainer_stopped_by_ctrl_c_ends_the_fit_at_that_stage(monkeypatch):
     assert [s["segment_length"] for s in model.info["stages"]] == [16]
 
 
+def test_ctrl_c_while_a_stage_is_announced_keeps_that_stage():
+    """The CLI's test sends the signal when it reads "[stage 1/...]": it can land before the print returns."""
+    _, full = _tank_fit(schedule=(16,))
+
+    def progress(line):
+        raise KeyboardInterrupt
+
+    _, model = _tank_fit(progress=progress)
+    assert model.info["interrupted"] is True and model.info["stages"][-1]["stopped"] == "interrupted"
+    assert [s["segment_length"] for s in model.info["stages"]] == [16]
+    z = np.linspace(0.5, 3.0, 7)
+    for name in ("f1", "f2"):
+        assert np.array_equal(model.curves[name](z), full.curves[name](z))
+
+
+def test_ctrl_c_while_the_free_runs_are_measured_keeps_the_trained_model(monkeypatch):
+    """CI once sent the signal after the last stage: the fit said "nothing was kept"."""
+    from charcurves.statespace import StateSpaceModel
+
+    _, full = _tank_fit()
+    real, calls = StateSpaceModel.free_run_rmse, []
+
+    def interrupt_once(self, record, **kw):
+        calls.append(kw)
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+        return real(self, record, **kw)
+
+    monkeypatch.setattr(StateSpaceModel, "free_run_rmse", interrupt_once)
+    _, model = _tank_fit()
+    assert model.info["interrupted"] is True and model.info["stages"][-1]["stopped"] == "interrupted"
+    assert [s["segment_length"] for s in model.info["stages"]] == [16, 40]
+    z = np.linspace(0.5, 3.0, 7)
+    for name in ("f1", "f2"):  # the trained curves, measured again
+        assert np.array_equal(model.curves[name](z), full.curves[name](z))
+    assert model.info["free_run_rmse"] == full.info["free_run_rmse"]
+    assert model.info["free_run_rmse_fitted_start"] == full.info["free_run_rmse_fitted_start"]
+
+
 def test_a_saved_hidden_model_loads_back_and_free_runs_to_the_last_bit(tmp_path):
     import charcurves as cc
     from charcurves.fitting import StateSpaceModel

@@ -22,7 +22,18 @@ def _version() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    code = _main(argv)
+    import signal
+
+    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        code = _main(argv)
+    finally:
+        if argv is not None:  # called in a process that goes on: its handlers as they were
+            for sig, handler in saved.items():
+                if handler is not None:
+                    signal.signal(sig, handler)
+    if argv is None:  # the outputs are written: a signal while the interpreter shuts down ends it at once
+        _quit_on_signal(code)
     if argv is None and "charcurves.symbolic" in sys.modules:
         from ..symbolic import searches_running
 
@@ -31,6 +42,27 @@ def main(argv: list[str] | None = None) -> int:
             sys.stderr.flush()
             os._exit(code)
     return code
+
+
+def _quit_on_signal(code: int) -> None:
+    """From here on, Ctrl-C or SIGTERM (a second signal close behind the first, say) exits at once with
+    the command's code instead of a KeyboardInterrupt traceback from an exit handler, or exit 143."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def quit_now(signum, frame):
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(code)
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, quit_now)
 
 
 def _main(argv: list[str] | None) -> int:

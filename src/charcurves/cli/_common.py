@@ -110,8 +110,8 @@ def first_interrupt_only():
     try:
         yield
     finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
+        for sig, old in previous.items():  # after an interrupt, what is left is to say what was kept:
+            signal.signal(sig, signal.SIG_IGN if count[0] else old)  # later signals wait (main() ends them)
 
 
 @contextlib.contextmanager

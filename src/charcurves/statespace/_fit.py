@@ -167,9 +167,12 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
         log.append({"segment_length": int(L), "linear_curves": bool(linear),
                     "loss": [float(v) for v in loss], "lm_iterations": iterations,
                     "seconds": time.perf_counter() - started})
-        if progress is not None:
-            progress(f"stage {k + 1}/{len(stages)}: segments of {int(L)} samples, best loss "
-                     f"{float(np.min(loss)):.4g}")
+        try:  # a signal sent when this line is read can land before the print returns: the stage is kept
+            if progress is not None:
+                progress(f"stage {k + 1}/{len(stages)}: segments of {int(L)} samples, best loss "
+                         f"{float(np.min(loss)):.4g}")
+        except KeyboardInterrupt:
+            interrupted = True
         if interrupted:
             log[-1]["stopped"] = "interrupted"
             break
@@ -219,9 +222,13 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
     if post is not None:
         info["post_sr"] = post
     model = StateSpaceModel(template, structure, curves, float(gain[best]), dict(zip(fm.layout, x0.tolist())), info)
-    model.info["free_run_rmse"] = rmse = model.free_run_rmse(record)
-    # the same run from the fitted initial state (measured entries as fitted, not the record's first samples)
-    model.info["free_run_rmse_fitted_start"] = model.free_run_rmse(record, initial=model.initial_state)
+    try:
+        rmse = _measure_free_runs(model, record)
+    except KeyboardInterrupt:  # the training had ended: an interrupt while its free runs are measured keeps it
+        model.info.update(interrupted=True, stopped_by="interrupted")
+        if log:
+            log[-1].setdefault("stopped", "interrupted")
+        rmse = _measure_free_runs(model, record)
     model.info["warnings"] = [] if all(np.isfinite(v) for v in rmse.values()) else [
         "the free run of the whole record diverges from the fitted initial state (the segments fit, the "
         "model is not stable over the record); give more starts (n_starts), a longer last segment (schedule) "
@@ -231,6 +238,14 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
 
 
 # ---------------------------------------------------------------------------------------------- pieces
+def _measure_free_runs(model, record) -> dict:
+    """The free-run RMSE of the whole record from its first samples and from the fitted initial state
+    (measured entries as fitted), stored in ``model.info``; returns the first."""
+    model.info["free_run_rmse"] = rmse = model.free_run_rmse(record)
+    model.info["free_run_rmse_fitted_start"] = model.free_run_rmse(record, initial=model.initial_state)
+    return rmse
+
+
 def _measured_layout(fm, cols, measured, dt):
     """The ODE state from the data: measured positions and their finite-difference derivatives
     (NaN for hidden entries)."""
