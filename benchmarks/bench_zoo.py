@@ -17,7 +17,8 @@ Every job, keyed by (system, method, setting, seed), is appended to
 ``benchmarks/results/zoo/results.jsonl`` as it ends (a failure of the library is recorded with its
 error); a rerun skips the jobs already there, so an interrupted run resumes. The tables are
 printed from that file (``--report-only`` prints them without fitting; ``--markdown FILE`` writes
-the tables of docs/zoo.md between its markers).
+the tables of docs/zoo.md between its markers; ``--out benchmarks/results/zoo/current.jsonl
+--markdown-current docs/zoo.md`` its summary of the defaults as they are now).
 
 Run: ``python benchmarks/bench_zoo.py [--grid quick|first|full] [--workers N] [--report-only]``.
 """
@@ -39,6 +40,8 @@ if HERE not in sys.path:
 import zoo  # noqa: E402
 
 RESULTS = os.path.join(HERE, "results", "zoo", "results.jsonl")
+#: The library as it is now: the ``seed0`` grid rerun on the code that docs/zoo.md describes.
+CURRENT = os.path.join(HERE, "results", "zoo", "current.jsonl")
 LIMIT = "limit"
 #: The methods in table order; "limit" is the parametric fit on the true basis.
 METHODS = ("nn-cc", "nn-cc+sym", "poly-cc", "sindy-cc+sym", "nn-cc+post-sr", LIMIT)
@@ -401,6 +404,8 @@ def jump_lines(rows: list[dict], *, markdown: bool = False) -> list[str]:
 
 
 BEGIN, END = "<!-- zoo-tables:begin (written by benchmarks/bench_zoo.py --markdown) -->", "<!-- zoo-tables:end -->"
+CURRENT_BEGIN = "<!-- zoo-current:begin (written by benchmarks/bench_zoo.py --out CURRENT --markdown-current) -->"
+CURRENT_END = "<!-- zoo-current:end -->"
 
 
 def zoo_lines() -> list[str]:
@@ -434,13 +439,25 @@ def markdown_block(rows: list[dict]) -> str:
     return "\n".join(out) + "\n"
 
 
-def write_markdown(path: str, rows: list[dict]) -> None:
-    """Replace the text between the markers of ``path`` (or append the block) with the tables."""
+def current_block(rows: list[dict], source: str = "current.jsonl") -> str:
+    """The generated part of docs/zoo.md on today's defaults: the summary per half of ``source``."""
+    seeds = sorted({(r["setting"], r["seed"]) for r in rows})
+    passes = ", ".join(f"{s} seed {k}" for s, k in seeds)
+    out = [CURRENT_BEGIN, "", f"From `benchmarks/results/zoo/{source}`: {len(rows)} jobs ({passes}).",
+           *table_lines(rows, markdown=True), "", CURRENT_END]
+    return "\n".join(out) + "\n"
+
+
+def write_markdown(path: str, rows: list[dict], *, current: bool = False) -> None:
+    """Replace the text between the markers of ``path`` (or append the block) with the tables:
+    the committed grid's (``markdown_block``) or, with ``current``, today's defaults' (``current_block``)."""
     text = open(path, encoding="utf-8").read() if os.path.exists(path) else ""
-    block = markdown_block(rows)
-    if BEGIN in text and END in text:
-        head, rest = text.split(BEGIN, 1)
-        text = head + block + rest.split(END, 1)[1].lstrip("\n")
+    begin, end = (CURRENT_BEGIN, CURRENT_END) if current else (BEGIN, END)
+    block = current_block(rows) if current else markdown_block(rows)
+    if begin in text and end in text:
+        head, rest = text.split(begin, 1)
+        tail = rest.split(end, 1)[1].lstrip("\n")
+        text = head + block + ("\n" + tail if tail else "")
     else:
         text = text + ("\n" if text and not text.endswith("\n") else "") + block
     tmp = path + ".tmp"
@@ -458,6 +475,8 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default=RESULTS, help="the JSONL store (default %(default)s)")
     parser.add_argument("--report-only", action="store_true", help="print the tables of the store; fit nothing")
     parser.add_argument("--markdown", metavar="FILE", help="write the tables into FILE (docs/zoo.md)")
+    parser.add_argument("--markdown-current", metavar="FILE",
+                        help="write the summary of --out (today's defaults: results/zoo/current.jsonl) into FILE")
     parser.add_argument("--limit-jobs", type=int, default=None, help="run at most this many new jobs")
     parser.add_argument("--methods", default=None,
                         help="comma-separated labels to run in place of the grid's methods, e.g. "
@@ -502,6 +521,8 @@ def main(argv=None) -> int:
             print("\n".join(lines))
     if a.markdown:
         write_markdown(a.markdown, rows)
+    if a.markdown_current:
+        write_markdown(a.markdown_current, rows, current=True)
     return 0
 
 

@@ -196,6 +196,17 @@ def test_docs_zoo_tables_are_the_committed_results():
     assert block == bench_zoo.markdown_block(bench_zoo.read_results(bench_zoo.RESULTS))
 
 
+def test_docs_zoo_current_summary_is_the_committed_rerun():
+    """The summary of today's defaults on docs/zoo.md is rendered from results/zoo/current.jsonl."""
+    text = (BENCH.parent / "docs" / "zoo.md").read_text(encoding="utf-8")
+    begin, end = bench_zoo.CURRENT_BEGIN, bench_zoo.CURRENT_END
+    block = text[text.index(begin):text.index(end) + len(end)] + "\n"
+    rows = bench_zoo.read_results(bench_zoo.CURRENT)
+    assert block == bench_zoo.current_block(rows)
+    assert {(r["setting"], r["seed"]) for r in rows} == {("F25", 0), ("x30", 0)} and len(rows) == 138
+    assert not [r for r in rows if "error" in r]
+
+
 def test_a_job_of_the_limit_reproduces_its_stored_row():
     """One real job (the parametric limit: a linear fit, well under a second) gives the row the
     committed store holds for it."""
