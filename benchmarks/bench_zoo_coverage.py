@@ -31,6 +31,8 @@ if HERE not in sys.path:
 import zoo  # noqa: E402
 from bench_zoo import _all_arguments, noisy_record  # noqa: E402
 
+from charcurves.experiments import coverage_table, gated_rows, per_curve_table  # noqa: E402
+
 RESULTS = os.path.join(HERE, "results", "zoo-coverage", "results.jsonl")
 SETTINGS = ("F25", "x30")
 METHODS = ("poly-cc", "sindy-cc+sym", "parametric")
@@ -106,57 +108,10 @@ def load_rows(path=RESULTS) -> list[dict]:
         return [json.loads(line) for line in fh if line.strip()]
 
 
-def gated(rows, level: float) -> list[dict]:
-    """The rows with the lack-of-fit band ("inside") only for curves whose binned test's p-value is
-    below ``level``, the plain band otherwise: exact for rows recorded at ``level`` or a laxer
-    ``--lof-level``."""
-    out = []
-    for r in rows:
-        if "inside_plain" not in r or "binned_p" not in r:
-            out.append(r)
-            continue
-        r = dict(r)
-        use = {s: r["binned_p"].get(s, 1.0) < level for s in r["inside"]}
-        r["inside"] = {s: r["inside"][s] if use[s] else r["inside_plain"][s] for s in r["inside"]}
-        r["half_width"] = {s: r["half_width"][s] if use[s] else r["half_width_plain"][s] for s in r["half_width"]}
-        out.append(r)
-    return out
-
-
-def table(rows, methods=METHODS, key="inside") -> str:
-    """Per setting and method: the mean share of the grid inside the 95 % band over every report-half
-    curve and seed, the share of fits whose band holds at least 90 % of the grid, the median half-width."""
-    out = ["| setting | method | grid inside 95 % band (mean) | fits with >= 0.9 of the grid inside | "
-           "half-width / sd(truth) (median) | curves x seeds | seeds | errors |", "|---|---|---|---|---|---|---|---|"]
-    for setting in SETTINGS:
-        for method in methods:
-            sel = [r for r in rows if r["setting"] == setting and r["method"] == method]
-            good = [r for r in sel if key in r and "error" not in r]
-            inside = [v for r in good for v in r[key].values()]
-            width = [v for r in good for v in r[key.replace("inside", "half_width")].values()]
-            if not sel:
-                continue
-            seeds = len({r["seed"] for r in sel})
-            out.append(f"| {setting} | {method} | {np.mean(inside):.3f} | {np.mean(np.array(inside) >= 0.9):.2f} | "
-                       f"{np.median(width):.3g} | {len(inside)} | {seeds} | {len(sel) - len(good)} |"
-                       if inside else f"| {setting} | {method} | – | – | – | 0 | {seeds} | {len(sel)} |")
-    return "\n".join(out)
-
-
-def per_curve(rows) -> str:
-    """Mean share inside per (setting, method, system, slot): where the bands fail; where the rows
-    have them, the plain Laplace band's share and its mean |error| / half-width (bias or spread)."""
-    keys = sorted({(r["setting"], r["method"], r["system"], s) for r in rows if "inside" in r for s in r["inside"]})
-    out = ["| setting | method | system | curve | grid inside (mean) | plain Laplace band | "
-           "plain: mean abs error / half-width | seeds |", "|---|---|---|---|---|---|---|---|"]
-    for st, m, sy, s in keys:
-        sel = [r for r in rows if (r["setting"], r["method"], r["system"]) == (st, m, sy) and "inside" in r]
-        v = [r["inside"][s] for r in sel]
-        p = [r["inside_plain"][s] for r in sel if "inside_plain" in r]
-        e = [r["error_over_half_width"][s] for r in sel if "error_over_half_width" in r]
-        out.append(f"| {st} | {m} | {sy} | {s} | {np.mean(v):.3f} | {f'{np.mean(p):.3f}' if p else '–'} | "
-                   f"{f'{np.mean(e):.2f}' if e else '–'} | {len(v)} |")
-    return "\n".join(out)
+# the tables are the library's (charcurves.experiments), which docs/uncertainty-zoo.md is rendered with
+gated = gated_rows
+table = coverage_table
+per_curve = per_curve_table
 
 
 def main(argv=None) -> int:

@@ -30,7 +30,8 @@ PAGES = {"benchmark.md": {"full-duffing", "full-stick-slip", "scripts-duffing", 
                          "state-noise-stick-slip-text"},
          "silverbox.md": {"silverbox-cost"},
          "differentiators.md": {"differentiators-seconds", "differentiators-acceleration", "differentiators-velocity",
-                                "differentiators-fits", "differentiators-references"}}
+                                "differentiators-fits", "differentiators-references"},
+         "uncertainty-zoo.md": {"zoo-coverage-term", "zoo-coverage-plain", "zoo-coverage-text"}}
 
 
 @pytest.fixture(scope="module")
@@ -159,3 +160,14 @@ def test_the_sentences_under_the_measured_records_tables_are_computed_from_the_r
         "`z, sign(z)` ends with f1 2× nn-cc+sym's (mean RMSE).\n")
     assert prose["state-noise-families-text"] == "The worst curve of any of these records is 0.4 % (two-dof, nn-cc, seed 2).\n"
     assert prose["state-noise-cost-text"].startswith("The largest mean ratio is 9.0× (duffing, poly-cc, 40 dB).")
+
+
+def test_the_zoo_coverage_tables_show_the_committed_values(tables):
+    # benchmarks/results/zoo-coverage/tables-lack-of-fit.md, which bench_zoo_coverage.py --report-only printed
+    term, plain = tables["zoo-coverage-term"].splitlines(), tables["zoo-coverage-plain"].splitlines()
+    assert term[2] == "| F25 | poly-cc | 0.862 | 0.61 | 0.0353 | 160 | 10 | 0 |"
+    assert "| F25 | nn-cc | 0.907 | 0.72 | 0.0299 | 64 | 4 | 0 |" in term
+    assert plain[4] == "| F25 | parametric | 0.948 | 0.88 | 0.00486 | 160 | 10 | 0 |"
+    text = tables["zoo-coverage-text"]
+    assert "(0.948 plain, 0.951 with the term" in text and "(poly-cc, 0.18)" in text
+    assert "poly-cc from 0.920 to 0.926" in text and "sindy-cc+sym at 0.85–0.86" in text

@@ -77,7 +77,7 @@ def _check_hidden(a) -> None:
 
 
 def _check_fit(a) -> None:
-    from ..fitting import METHODS
+    from .._method_table import METHODS
 
     _check_hidden(a)
     # a hidden-state fit's --method names its curves, and its SR is --post-sr's (checked above)

@@ -60,7 +60,7 @@ def _rows(text: str) -> slice:
 
 
 def build_parser(version: str) -> argparse.ArgumentParser:
-    from ..fitting import METHODS
+    from .._method_table import METHODS
     from ..systems import MAX_SIMULATE_POINTS, MAX_SIMULATE_SPAN
     from ..systems import SYSTEM_NAMES
 

@@ -11,6 +11,7 @@ run_benchmark(out_dir, ...)                the paper's study: sweeps, tables, fi
 build_report(out_dir)                      rebuild the report from results.csv, run.json, extras.json alone
 docs_tables(results_root)                  the docs' headline tables from the committed results folders
 fill_table_markers(text, tables)           write them between a page's <!-- table:NAME --> markers
+zoo_coverage_tables(results_root)          docs/uncertainty-zoo.md's coverage tables; gated_rows, coverage_table, per_curve_table
 ray_ensemble_fitter(address)               select_family's ensemble fits as Ray tasks on a cluster
 run_real_benchmark(name, out_dir, ...)     a real benchmark (charcurves.datasets): fit, test RMSE after the window
 
@@ -31,6 +32,10 @@ from ._benchmark import run_benchmark as run_benchmark
 from ._docs_tables import docs_tables as docs_tables
 from ._real import run_real_benchmark as run_real_benchmark
 from ._docs_tables import fill_table_markers as fill_table_markers
+from ._zoo_coverage_tables import coverage_table as coverage_table
+from ._zoo_coverage_tables import gated_rows as gated_rows
+from ._zoo_coverage_tables import per_curve_table as per_curve_table
+from ._zoo_coverage_tables import zoo_coverage_tables as zoo_coverage_tables
 from ._report_inputs import build_report as build_report
 from ._remote import ray_ensemble_fitter as ray_ensemble_fitter
 from ._runner import Job as Job
@@ -91,6 +96,10 @@ __all__ = [
     "dataset_seed",
     "docs_tables",
     "fill_table_markers",
+    "zoo_coverage_tables",
+    "gated_rows",
+    "coverage_table",
+    "per_curve_table",
     "default_fit_options",
     "evaluate_forward",
     "job_key",

@@ -21,6 +21,7 @@ from . import _paper_values as paper
 from ._appendix_f import _a_rows, protocol_frames
 from ._differentiator_tables import differentiator_tables
 from ._records_tables import records_tables
+from ._zoo_coverage_tables import zoo_coverage_tables
 from ._report_inputs import committed_csv, read_results_csv
 from ._tables import BIAS_LIMITED, a_fit_table, performance_table, tsep_failure_snr
 
@@ -178,6 +179,7 @@ def docs_tables(results_root: str | os.PathLike) -> dict[str, str]:
             out["appendix-f"] = appendix_f_table(protocols)
     out.update(records_tables(root))
     out.update(differentiator_tables(root))
+    out.update(zoo_coverage_tables(root))
     return out
 
 

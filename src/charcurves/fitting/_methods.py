@@ -9,36 +9,16 @@ builds ``Neural(symmetry="odd")`` for every curve of the template, ``"poly-cc"``
 
 from __future__ import annotations
 
-from typing import Any
 
 import numpy as np
 
 from .._errors import ConfigError
+from .._method_table import METHODS as METHODS  # pure data: the CLI reads it without loading torch
 from ..curves import SYMMETRY_NAMES, Basis, Neural, Polynomial, SparseLibrary, Symbolic
 
 __all__ = ["METHODS", "parse_symmetry", "parse_basis_option", "DEFAULT_BASIS", "DEFAULT_GENERAL_BASIS",
            "method_curve", "check_method_options", "POLY_OPTIONS", "SINDY_OPTIONS", "shared_fit_base"]
 
-#: The paper's twelve methods as named presets of shared parts: a curve representation, whether a
-#: symmetry prior applies (odd curves unless told otherwise) and whether the learned curves are
-#: distilled into closed forms afterwards (post-SR); and ``sr-cc+refit``, SR-CC with a joint
-#: least-squares refit of the coefficients of the structure SR found (``Symbolic(refit=True)``).
-METHODS: dict[str, dict[str, Any]] = {
-    "nn-cc": {"representation": "neural", "symmetry": False, "post_sr": False},
-    "nn-cc+post-sr": {"representation": "neural", "symmetry": False, "post_sr": True},
-    "nn-cc+sym": {"representation": "neural", "symmetry": True, "post_sr": False},
-    "nn-cc+sym+post-sr": {"representation": "neural", "symmetry": True, "post_sr": True},
-    "poly-cc": {"representation": "poly", "symmetry": False, "post_sr": False, "allows_symmetry": True},
-    "sindy": {"representation": "sindy", "symmetry": False, "post_sr": False, "free_gain": True},
-    "sindy-cc": {"representation": "sindy", "symmetry": False, "post_sr": False},
-    "sindy-cc+sym": {"representation": "sindy", "symmetry": True, "post_sr": False},
-    "sindy-cc+sym+post-sr": {"representation": "sindy", "symmetry": True, "post_sr": True},
-    "sr": {"representation": "sr", "symmetry": False, "post_sr": False},
-    "sr-cc": {"representation": "sr-cc", "symmetry": False, "post_sr": False},
-    # not one of the paper's twelve: SR-CC whose found structure is refitted jointly by least squares
-    "sr-cc+refit": {"representation": "sr-cc", "symmetry": False, "post_sr": False, "refit": True},
-    "parametric": {"representation": "basis", "symmetry": False, "post_sr": False},
-}
 
 def shared_fit_base(method: str) -> str | None:
     """The method whose fit ``method`` extends, or None: X for "X+post-sr" (the same networks or
