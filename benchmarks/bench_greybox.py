@@ -16,7 +16,8 @@ upper level hidden; both starts of ``fit_state_space``), ``two-dof-x1`` (the pap
 system, 1500 samples over 60 s, noise on x1 at 40 dB, x2 hidden; ``two-dof-x1-newton``: one coupling
 curve, ``- f2(x1 - x2)`` in the second equation), ``bouc-wen`` (``BoucWen``,
 ``--bw-samples`` multisine samples for training, the test multisine and sweep records for the free
-run).
+run; ``bouc-wen-kink``: f3, f4 on the basis 1, z, |z|, z**2, z*|z|, z**3; both with a linear
+second-order baseline fitted the same way and test free runs from rest and with a 50-sample window).
 
 Run: ``python benchmarks/bench_greybox.py [--cases two-tank,two-dof-x1,bouc-wen] [--out DIR]``;
 results go to ``DIR/results.json`` (default benchmarks/results/greybox).
