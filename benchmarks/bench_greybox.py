@@ -16,7 +16,8 @@ upper level hidden; both starts of ``fit_state_space``), ``two-dof-x1`` (the pap
 system, 1500 samples over 60 s, noise on x1 at 40 dB, x2 hidden; ``two-dof-x1-newton``: one coupling
 curve, ``- f2(x1 - x2)`` in the second equation), ``bouc-wen`` (``BoucWen``,
 ``--bw-samples`` multisine samples for training, the test multisine and sweep records for the free
-run).
+run; ``bouc-wen-kink``: f3, f4 on the basis 1, z, |z|, z**2, z*|z|, z**3; both with a linear
+second-order baseline fitted the same way and test free runs from rest and with a 50-sample window).
 
 Run: ``python benchmarks/bench_greybox.py [--cases two-tank,two-dof-x1,bouc-wen] [--out DIR]``;
 results go to ``DIR/results.json`` (default benchmarks/results/greybox).
@@ -125,8 +126,10 @@ def two_dof_x1(start: str, n_starts: int, seed: int, newton: bool = False, **fit
             "stages": model.info["stages"], "gauges": model.info["gauge_freedoms"]}
 
 
-def bouc_wen(start: str, n_starts: int, seed: int, samples: int, extrapolation: str = "polynomial") -> dict:
-    from charcurves.fitting import fit_state_space
+def bouc_wen(start: str, n_starts: int, seed: int, samples: int, extrapolation: str = "polynomial", kink: bool = False,
+             **fit) -> dict:
+    from charcurves.curves import Basis
+    from charcurves.fitting import fit_state_space, window_free_run_error
     from charcurves.systems import BoucWen
     from charcurves.templates import StateSpace
 
@@ -134,17 +137,39 @@ def bouc_wen(start: str, n_starts: int, seed: int, samples: int, extrapolation: 
     train = system.simulate(system.multisine(seed=seed, period=samples), seed=seed)
     tests = {"multisine": system.multisine(seed=seed + 100, period=8192), "sweep": system.sweep(8192)}
     template = StateSpace("x1'' + f1(x1') + f2(x1) + x2 = g*F; x2' = f3(x2)*Abs(x1') + f4(x2)*x1'",
-                          measured={"x1": "x"})
+                          measured={"x1": "x"},
+                          # kink: the hysteresis curves on powers with a kink at 0 (|z|, z |z|), which the
+                          # Bouc-Wen law's |z| needs and a smooth polynomial only approximates
+                          **({n: Basis("1, z, Abs(z), z**2, z*Abs(z), z**3") for n in ("f3", "f4")} if kink else {}))
     t0 = time.perf_counter()
-    model = fit_state_space(template, train, start=start, n_starts=n_starts, seed=seed, extrapolation=extrapolation)
+    model = fit_state_space(template, train, start=start, n_starts=n_starts, seed=seed, extrapolation=extrapolation,
+                            **fit)
     seconds = time.perf_counter() - t0
-    out = {"case": "bouc-wen", "extrapolation": extrapolation, "start": start, "seed": seed, "samples": samples, "seconds": seconds,
+    clean_train = system.states(system.multisine(seed=seed, period=samples))
+    ranges = {"f1": clean_train["v"], "f2": clean_train["y"], "f3": clean_train["w"], "f4": clean_train["w"]}
+    truth = system.curves()
+    out = {"case": "bouc-wen" + ("-kink" if kink else ""), "extrapolation": extrapolation, "start": start, "seed": seed, "samples": samples, "seconds": seconds,
+           **fit, "fit_cpu_seconds": model.info["cpu_seconds"],
            "gain": model.gain, "free_run_rmse_train": model.info["free_run_rmse"]["x1"],
+           "free_run_rmse_train_fitted_start": model.info["free_run_rmse_fitted_start"]["x1"],
+           "noise_rmse_train": float(np.sqrt(np.mean((train.x - clean_train["y"]) ** 2))),
+           **{f"{n}_nrmse": nrmse(model.curves[n], truth[n], r.min(), r.max()) for n, r in ranges.items()},
            "stages": model.info["stages"], "gauges": model.info["gauge_freedoms"]}
+    # the baseline of the same run: a linear second-order model (no hidden state), fitted the same way
+    linear = fit_state_space(StateSpace("x1'' + f1(x1') + f2(x1) = g*F", measured={"x1": "x"}, f1=Basis("z"),
+                                        f2=Basis("z")), train, start=start, n_starts=n_starts, seed=seed)
     for name, u in tests.items():
         rec = system.simulate(u, seed=seed + 7)
         clean = system.states(u)
         out[f"test_{name}_rmse"] = model.free_run_rmse(rec)["x1"]
+        out[f"test_{name}_linear_rmse"] = linear.free_run_rmse(rec)["x1"]
+        # from rest (the records' true initial state, the one the true model's run starts from), hidden x2 = 0
+        out[f"test_{name}_rmse_from_rest"] = model.free_run_rmse(rec, initial=dict.fromkeys(model.initial_state, 0.0))["x1"]
+        out[f"test_{name}_linear_rmse_from_rest"] = linear.free_run_rmse(
+            rec, initial=dict.fromkeys(linear.initial_state, 0.0))["x1"]
+        # the benchmarks' convention: the initial state from the first 50 samples, RMSE after them
+        out[f"test_{name}_rmse_window50"] = window_free_run_error(model, rec, 50)[0]["x1"]
+        out[f"test_{name}_true_model_rmse_window50"] = float(np.sqrt(np.mean((rec.x - clean["y"])[50:] ** 2)))
         out[f"test_{name}_true_model_rmse"] = float(np.sqrt(np.mean((rec.x - clean["y"]) ** 2)))
     return out
 
@@ -188,8 +213,9 @@ def main(argv=None) -> int:
                                    neural=args.neural, hold=args.tank_hold, **fit)
                 elif case in ("two-dof-x1", "two-dof-x1-newton"):
                     row = two_dof_x1(start, args.n_starts, args.seed, newton=case.endswith("newton"), **fit)
-                elif case == "bouc-wen":
-                    row = bouc_wen(start, args.n_starts, args.seed, args.bw_samples, args.extrapolation)
+                elif case in ("bouc-wen", "bouc-wen-kink"):
+                    row = bouc_wen(start, args.n_starts, args.seed, args.bw_samples, args.extrapolation,
+                                   kink=case.endswith("kink"), **fit)
                 else:
                     raise SystemExit(f"unknown case {case!r}")
             except Exception as exc:  # a failure of the library is a result too
