@@ -421,12 +421,15 @@ def zoo_lines() -> list[str]:
         ["| " + " | ".join(b) + " |" for b in body]
 
 
+def _source_line(rows: list[dict], source: str) -> str:
+    """"From `benchmarks/results/zoo/SOURCE`: N jobs (F25 seed 0, ...)." for a page's block."""
+    passes = ", ".join(f"{s} seed {k}" for s, k in sorted({(r["setting"], r["seed"]) for r in rows}))
+    return f"From `benchmarks/results/zoo/{source}`: {len(rows)} jobs ({passes})."
+
+
 def markdown_block(rows: list[dict]) -> str:
     """The generated part of docs/zoo.md: the zoo's curves, the summary per half and the per-curve tables."""
-    seeds = sorted({(r["setting"], r["seed"]) for r in rows})
-    passes = ", ".join(f"{s} seed {k}" for s, k in seeds)
-    out = [BEGIN, "", "## The curves", "", *zoo_lines(), "", "## Results", "",
-           f"From `benchmarks/results/zoo/results.jsonl`: {len(rows)} jobs ({passes}).",
+    out = [BEGIN, "", "## The curves", "", *zoo_lines(), "", "## Results", "", _source_line(rows, "results.jsonl"),
            *table_lines(rows, markdown=True)]
     jl = jump_lines(rows, markdown=True)
     if jl:
@@ -441,10 +444,7 @@ def markdown_block(rows: list[dict]) -> str:
 
 def current_block(rows: list[dict], source: str = "current.jsonl") -> str:
     """The generated part of docs/zoo.md on today's defaults: the summary per half of ``source``."""
-    seeds = sorted({(r["setting"], r["seed"]) for r in rows})
-    passes = ", ".join(f"{s} seed {k}" for s, k in seeds)
-    out = [CURRENT_BEGIN, "", f"From `benchmarks/results/zoo/{source}`: {len(rows)} jobs ({passes}).",
-           *table_lines(rows, markdown=True), "", CURRENT_END]
+    out = [CURRENT_BEGIN, "", _source_line(rows, source), *table_lines(rows, markdown=True), "", CURRENT_END]
     return "\n".join(out) + "\n"
 
 

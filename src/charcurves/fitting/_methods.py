@@ -9,7 +9,6 @@ builds ``Neural(symmetry="odd")`` for every curve of the template, ``"poly-cc"``
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from .._errors import ConfigError
