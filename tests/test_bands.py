@@ -8,7 +8,7 @@ import pytest
 from charcurves._errors import ConfigError
 from charcurves.cli import main
 from charcurves.data import corrupt
-from charcurves.fitting import CharacteristicCurves
+from charcurves.fitting import CharacteristicCurves, residual_block
 from charcurves.selection import (Ensemble, attach_bands, band_coverage, bootstrap_records, curve_bands,
                                   fit_ensemble)
 from charcurves.systems import get_system
@@ -68,6 +68,36 @@ def test_bootstrap_keeps_the_state_and_flips_residual_signs():
         assert np.allclose(np.abs(b.F - f_hat), np.abs(resid))
     flips = np.mean(np.sign(boots[0].F - f_hat) != np.sign(rec.F - f_hat))
     assert 0.4 < flips < 0.6
+
+
+def test_residual_block_is_one_for_white_noise_and_the_correlation_length_otherwise():
+    rng = np.random.default_rng(0)
+    white = rng.standard_normal(2000)
+    assert residual_block(white) == 1
+    # a moving average of 12 samples: correlation 1 - k/12 at lag k, inside 2/sqrt(n) = 0.045 from lag 12
+    smooth = np.convolve(rng.standard_normal(2011), np.ones(12), mode="valid")
+    assert 10 <= residual_block(smooth) <= 12
+    assert residual_block(np.cumsum(white)) == 100  # a random walk: capped at n // 20 (20 blocks)
+    # several equations: the longest column's length
+    assert residual_block(np.column_stack([white, smooth[:2000]])) == residual_block(smooth[:2000])
+    assert residual_block(white[:30]) == 1  # too short to estimate
+
+
+def test_bootstrap_flips_one_sign_per_block():
+    rec = corrupt(get_system("duffing").simulate(), 20, seed=0)
+    model = CharacteristicCurves.from_method(method="poly-cc").fit(rec).model_
+    resid = model.force_residual(rec)
+    f_hat = rec.F + resid
+    [b] = bootstrap_records(rec, model, 1, random_state=3, block=25)
+    signs = np.sign(f_hat - b.F) * np.sign(resid)
+    blocks = signs.reshape(-1, 25)  # 1000 samples: 40 blocks
+    assert np.all(blocks == blocks[:, :1]) and 10 < np.sum(blocks[:, 0] > 0) < 30
+    # white residual (noise on F): the default block is one sample, the copies the sign-per-sample ones
+    auto = bootstrap_records(rec, model, 2, random_state=1)
+    per_sample = bootstrap_records(rec, model, 2, random_state=1, block=1)
+    assert all(np.array_equal(a.F, p.F) for a, p in zip(auto, per_sample))
+    with pytest.raises(ConfigError, match="block must be a positive number of samples, got 0"):
+        bootstrap_records(rec, model, 1, block=0)
 
 
 def test_ensemble_size_is_checked():

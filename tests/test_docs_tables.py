@@ -31,7 +31,9 @@ PAGES = {"benchmark.md": {"full-duffing", "full-stick-slip", "scripts-duffing", 
          "silverbox.md": {"silverbox-cost"},
          "differentiators.md": {"differentiators-seconds", "differentiators-acceleration", "differentiators-velocity",
                                 "differentiators-fits", "differentiators-references"},
-         "uncertainty-zoo.md": {"zoo-coverage-term", "zoo-coverage-plain", "zoo-coverage-text"}}
+         "uncertainty-zoo.md": {"zoo-coverage-term", "zoo-coverage-plain", "zoo-coverage-text"},
+         "selection.md": {"parity-zoo"},
+         "several-records.md": {"records-joint", "records-outside"}}
 
 
 @pytest.fixture(scope="module")

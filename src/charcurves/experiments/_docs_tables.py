@@ -21,6 +21,7 @@ from . import _paper_values as paper
 from ._appendix_f import _a_rows, protocol_frames
 from ._differentiator_tables import differentiator_tables
 from ._records_tables import records_tables
+from ._selection_tables import selection_tables
 from ._zoo_coverage_tables import zoo_coverage_tables
 from ._report_inputs import committed_csv, read_results_csv
 from ._tables import BIAS_LIMITED, a_fit_table, performance_table, tsep_failure_snr
@@ -147,7 +148,9 @@ def docs_tables(results_root: str | os.PathLike) -> dict[str, str]:
     training-defaults and Silverbox pages from ``state_noise.json`` and ``long_records.json``
     (``state-noise-duffing``, ``state-noise-stick-slip``, ``state-noise-families``, ``state-noise-cost``,
     ``long-records``, ``silverbox-cost``) and those of the differentiators page from ``differentiators.json``
-    (``differentiators-seconds``, ``-acceleration``, ``-velocity``, ``-fits``, ``-references``).
+    (``differentiators-seconds``, ``-acceleration``, ``-velocity``, ``-fits``, ``-references``), and those of
+    the selection and several-records pages from ``parity/zoo.json`` and ``records/duffing.json``
+    (``parity-zoo``, ``records-joint``, ``records-outside``).
 
     Examples
     --------
@@ -180,6 +183,7 @@ def docs_tables(results_root: str | os.PathLike) -> dict[str, str]:
     out.update(records_tables(root))
     out.update(differentiator_tables(root))
     out.update(zoo_coverage_tables(root))
+    out.update(selection_tables(root))
     return out
 
 

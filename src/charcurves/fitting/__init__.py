@@ -13,7 +13,7 @@ FittedModel, load_model                                    fitted models and the
 plot_curves, plot_model, model_html, curve_lines, ...      views of a fitted model (figures, text, HTML)
 METHODS, PRESETS, TrainingPreset                           method and training presets
 window_free_run_error, estimate_window_state        validation with an initialisation window (hidden states)
-fit_ensemble(s), bootstrap_records, detect_symmetry, parity_tests   ensembles and parity tests
+fit_ensemble(s), bootstrap_records, residual_block, detect_symmetry, parity_tests   ensembles and parity tests
 curve_band, posterior_bands, uncertainty_summary, LinearPosterior   the posterior of a fit
 closed_form_posterior, ClosedFormPosterior     the posterior of post-SR constants
 """
@@ -22,6 +22,7 @@ from ._ensemble import ENSEMBLE_KINDS as ENSEMBLE_KINDS
 from ._ensemble import MIN_MEMBERS as MIN_MEMBERS
 from ._ensemble import Ensemble as Ensemble
 from ._ensemble import bootstrap_records as bootstrap_records
+from ._ensemble import residual_block as residual_block
 from ._ensemble import check_band_options as check_band_options
 from ._ensemble import fit_ensemble as fit_ensemble
 from ._ensemble import fit_ensembles as fit_ensembles

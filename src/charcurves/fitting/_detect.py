@@ -11,7 +11,8 @@ __all__ = ["detect_symmetry"]
 
 
 def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, threshold: float = PARITY_THRESHOLD,
-                    random_state: int = 0, method: str = "nn-cc", objective=None, **estimator_params) -> dict[str, dict]:
+                    random_state: int = 0, method: str = "nn-cc", objective=None, block: int | None = None,
+                    **estimator_params) -> dict[str, dict]:
     """Fit unconstrained NN-CC curves with a bootstrap ensemble and test their parity.
 
     Parameters
@@ -29,6 +30,9 @@ def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, th
     objective : optional
         The objective of the tested fits (default: the estimator's; "equation-error" skips the
         output-error refit of a measured record).
+    block : int, optional
+        Samples per sign of the residual bootstrap (default: the residual's correlation length,
+        :func:`~charcurves.fitting.residual_block`; 1: a sign per sample).
     **estimator_params
         Settings for a new estimator when none is given (e.g. ``family="separable"``).
 
@@ -50,4 +54,4 @@ def detect_symmetry(record, *, estimator=None, n_members: int = AUTO_MEMBERS, th
     if estimator is None:
         estimator = CharacteristicCurves.from_method(**legacy_options(estimator_params))
     return detect_parity(record, estimator, n_members=n_members, threshold=threshold, random_state=random_state,
-                         method=method, objective=objective)
+                         method=method, objective=objective, block=block)

@@ -132,9 +132,11 @@ def parity_tests(ensemble, *, threshold: float = PARITY_THRESHOLD, n_grid: int =
 
 
 def detect_parity(record, estimator, *, n_members: int = AUTO_MEMBERS, threshold: float = PARITY_THRESHOLD,
-                  random_state: int = 0, method: str = "nn-cc", objective=None) -> dict[str, dict]:
+                  random_state: int = 0, method: str = "nn-cc", objective=None,
+                  block: int | None = None) -> dict[str, dict]:
     """:func:`~charcurves.fitting.detect_symmetry` with the settings of ``estimator`` (its class builds
-    the tested fits, so this module needs no estimator class of its own)."""
+    the tested fits, so this module needs no estimator class of its own); ``block``: the bootstrap's
+    (:func:`~charcurves.fitting.bootstrap_records`, default the residual's correlation length)."""
     params = estimator.flat_params()
     params.update(method=method, symmetry=None, random_state=int(random_state), progress=None, basis=None,
                   post_sr=None)
@@ -143,7 +145,8 @@ def detect_parity(record, estimator, *, n_members: int = AUTO_MEMBERS, threshold
     if objective is not None:
         params.update(objective=objective)
     try:
-        ensemble = fit_ensemble(type(estimator).from_method(**params), record, n_members, kind="bootstrap")
+        ensemble = fit_ensemble(type(estimator).from_method(**params), record, n_members, kind="bootstrap",
+                                block=block)
     except ConfigError as exc:
         # the residual bootstrap needs each equation's own forcing column; otherwise seeds only
         if "kind='seeds'" not in str(exc):
