@@ -11,6 +11,9 @@ the share of points where the truth lies inside it is recorded, with the band's 
 relative to the true curve's sd. Rows are appended to ``benchmarks/results/zoo-coverage/results.jsonl``
 as they end; a rerun skips the jobs already there.
 
+``--previous`` also scores, on the same fits, the band of the lack-of-fit estimate before issue 48's
+level fix (``benchmarks/_lof_previous.py``): ``inside_prev``, ``half_width_prev``, ``binned_p_prev``.
+
 Run: ``python benchmarks/bench_zoo_coverage.py --seeds 0-9 [--report-only] [--markdown FILE]``.
 """
 
@@ -76,6 +79,10 @@ def run_job(job, clean_cache) -> dict:
     row["binned_p"] = dict(model.info.get("lack_of_fit_p", {}))  # the bias test of each curve
     row["inside"], row["half_width"], row["inside_plain"], row["half_width_plain"] = {}, {}, {}, {}
     row["error_over_half_width"] = {}
+    prev = model.info.pop("_lack_of_fit_previous", None)  # --previous: the old estimate on the same fit
+    if prev is not None:
+        row["binned_p_prev"] = {c: p for c, (_, _, p) in prev.items()}
+        row["inside_prev"], row["half_width_prev"] = {}, {}
     from statistics import NormalDist
 
     zq = NormalDist().inv_cdf(0.5 + LEVEL / 2)
@@ -96,9 +103,23 @@ def run_job(job, clean_cache) -> dict:
         hw = zq * np.asarray(sd)
         row["inside_plain"][slot] = float(np.mean(np.abs(f - value) <= hw))
         row["half_width_plain"][slot] = float(np.mean(hw) / np.std(f))
+        if prev is not None:
+            pv, psd = cc.model.LackOfFitPosterior(plain, {c: (zc, b) for c, (zc, b, _) in prev.items()}).curve_sd(slot, z)
+            row["inside_prev"][slot] = float(np.mean(np.abs(f - pv) <= zq * psd))
+            row["half_width_prev"][slot] = float(np.mean(zq * psd) / np.std(f))
         ok = hw > 0
         row["error_over_half_width"][slot] = float(np.mean(np.abs(f - value)[ok] / hw[ok])) if np.any(ok) else 0.0
     return row
+
+
+def previous_rows(rows: list[dict]) -> list[dict]:
+    """The rows with the previous estimate's band in ``inside`` (for the same tables); rows without it dropped."""
+    out = []
+    for r in rows:
+        if "inside_prev" in r:
+            out.append({**r, "inside": r["inside_prev"], "half_width": r["half_width_prev"],
+                        "binned_p": r["binned_p_prev"]})
+    return out
 
 
 def load_rows(path=RESULTS) -> list[dict]:
@@ -129,6 +150,8 @@ def main(argv=None) -> int:
     p.add_argument("--gate", type=float, default=None,
                    help="tables: the term only where the binned test's p is below this (default: the library's "
                         "LACK_OF_FIT_LEVEL; exact for rows run at that level or a laxer one)")
+    p.add_argument("--previous", action="store_true",
+                   help="also score the lack-of-fit estimate before issue 48's level fix on the same fits")
     a = p.parse_args(argv)
     if a.lof_level is not None or a.lof_bins is not None:  # tuning runs (the tuning half only)
         import charcurves.fitting._lack_of_fit as lof
@@ -143,6 +166,10 @@ def main(argv=None) -> int:
         import torch
 
         torch.set_num_threads(1)
+        if a.previous:
+            from _lof_previous import record_previous
+
+            record_previous()
         os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
         done = {r["key"] for r in load_rows(out)}
         cache: dict = {}
@@ -162,8 +189,15 @@ def main(argv=None) -> int:
     if any("inside_plain" in r for r in rows):
         print("\nThe plain Laplace band (no lack-of-fit term) of the same fits:\n")
         print(table(rows, methods, key="inside_plain"))
+    prev = gated(previous_rows(load_rows(out)), LACK_OF_FIT_LEVEL if a.gate is None else a.gate)
+    if prev:
+        print("\nThe previous lack-of-fit estimate (before issue 48's level fix) on the same fits:\n")
+        print(table(prev, methods))
     if a.per_curve:
         print(per_curve(rows))
+        if prev:
+            print("\nPer curve, the previous estimate:\n")
+            print(per_curve(prev))
     return 0
 
 

@@ -5,17 +5,22 @@ Where the record's law has a shape the representation cannot take, the self-chec
 (:func:`charcurves.fitting.residual_check`) finds the residual to be a function of that curve's
 argument, and the band is centred off the truth by the representation's bias. That bias is what the
 residual holds: with ``f = f_hat + b`` the equation's residual is ``b(z) + noise`` (after the
-columns the fit could still change are projected out), so the residual's means in quantile bins of
-each curve's argument, regressed jointly over the curves of an equation (an additive model, each
-curve's bins scaled by its coefficient in the equation), estimate ``b`` in the curve's units.
+columns the fit could still change are projected out; a sparse fit's pruned terms are not among
+them), so a function of each curve's argument, linear between the medians of its quantile bins (hat
+functions), regressed jointly over the curves of an equation (an additive model, each curve's hats
+scaled by its coefficient in the equation), estimates ``b`` in the curve's units.
 
-:func:`lack_of_fit_bias` gives those estimates, gauge-fixed like the curve (zero at 0 where the
-range holds 0, else mean zero over the record); :func:`apply_lack_of_fit` wraps the model's
+:func:`lack_of_fit_bias` gives those estimates at the level the fit leaves them: zero at 0 only for a
+curve whose value at 0 the fit does not estimate (anchored by the gauge, ``f2(0) = 0``, or zero at 0 by
+its representation, an odd prior; mean zero over the record where its range misses 0), while a curve
+whose value at 0 is free keeps its level, and the one that carries an equation's constant takes the
+residual's constant (issue 48: a spring's misfit at 0 that the gauge hands to the damper, a
+position-damping curve's bias at 0, were dropped before); :func:`apply_lack_of_fit` wraps the model's
 posterior in a :class:`charcurves.model.LackOfFitPosterior` for each curve whose binned test
 rejects at :data:`LACK_OF_FIT_LEVEL` (the variance ``sd^2 + b^2``: a mean squared error band) and says
-so in ``info["posterior"]``. A curve whose test passes keeps its band unchanged: the bin means' own
-noise is far larger than the band of a well-specified curve (a Duffing fit's linear damping: 2-6 times
-its width), so it is not added where nothing was found.
+so in ``info["posterior"]``. A curve whose test passes keeps its band unchanged: the estimate's own
+noise is far larger than the band of a well-specified curve (a Duffing fit's linear spring: about 4
+times its width), so it is not added where nothing was found.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ from ..model import LackOfFitPosterior
 from scipy.stats import chi2
 
 from ._residual_tests import ar_whitener, bin_indices
-from ._self_check import _equation_parts
+from ._self_check import _features
 
 __all__ = ["LACK_OF_FIT_BINS", "LACK_OF_FIT_LEVEL", "apply_lack_of_fit", "lack_of_fit_bias"]
 
@@ -42,10 +47,10 @@ def lack_of_fit_bias(model, record, mask=None, *, bins: int = LACK_OF_FIT_BINS, 
     """``{curve: (centres, bias, p_value)}``: the representation's bias (truth minus fit) of each curve
     (of ``curves``, default all that vary) estimated from the residual of ``model`` on ``record`` (the
     prepared record of the fit; ``mask`` leaves samples out), at the median of each quantile bin of
-    the curve's argument, and the p-value of no bias (the bin means over their standard errors, squared
-    and summed, against chi-square with one degree of freedom fewer than the bins).
-    ``shrink``: each bin's squared mean less its variance (the residual's long-run variance over the
-    bin's samples), floored at 0.
+    the curve's argument (linear between them), and the p-value of no bias (a Wald test of those values
+    with their covariance under the level conditions, against chi-square with its rank: one fewer than
+    the bins for a curve held at 0).
+    ``shrink``: each value's square less its variance (from the residual's long-run variance), floored at 0.
 
     Examples
     --------
@@ -61,12 +66,14 @@ def lack_of_fit_bias(model, record, mask=None, *, bins: int = LACK_OF_FIT_BINS, 
     >>> bool(np.corrcoef(b, true_bias)[0, 1] > 0.95), p < 1e-10
     (True, True)
     """
-    parts = _equation_parts(model, record, mask)
     D = model.template.design(record)
     n = D["n"]
     keep = np.asarray(mask, bool) if mask is not None and len(mask) == n else np.ones(n, bool)
+    fixed = _fixed_at_zero(model)
+    offsets = _offset_equations(model)
+    parts = _parts(model, record, D, keep)
     out: dict = {}
-    for e, (r, _F, args) in enumerate(parts):
+    for e, (r, args, Q) in enumerate(parts):
         rows = slice(e * n, (e + 1) * n)
         names = [c for c, z in args.items() if np.ptp(z) > 0 and c not in out and (curves is None or c in curves)]
         if not names or r.size < 4 * 3:
@@ -76,33 +83,143 @@ def lack_of_fit_bias(model, record, mask=None, *, bins: int = LACK_OF_FIT_BINS, 
         for c in names:
             z = args[c]
             idx, counts = bin_indices(z, K)
-            B = np.zeros((r.size, counts.size))
-            B[np.arange(r.size), idx] = 1.0
             mult = np.asarray(D["mult"][c], dtype=float)[rows][keep]
-            layout[c] = (len(cols), counts.size, idx)
+            centres = np.array([np.median(z[idx == j]) for j in range(counts.size)])
+            # the bias linear between the bins' medians, as the widened band takes it (LackOfFitPosterior): hat
+            # functions, whose fit of a smooth bias is off by far less within a bin than bin means (so that a
+            # large misfit of one curve does not leak into the other curves' bins through their correlation)
+            B = _hats(z, centres)
+            layout[c] = (len(cols), counts.size, B.mean(axis=0), centres)
             cols.extend((B * mult[:, None]).T)
         X = np.column_stack(cols)
-        beta = -np.linalg.lstsq(X, r, rcond=None)[0]  # the residual is model - data; minimum norm: levels fixed below
+        C = _level_conditions(X.shape[1], layout, fixed, free_constant=e not in offsets)
+        A = _constrained_solver(X, C)  # beta = -A r: least squares under the curves' level conditions
+        beta = -(A @ r)  # the residual is model - data
         lrv = _long_run_variance(r + X @ beta)
         for c in names:
-            start, k, idx = layout[c]
-            b = beta[start:start + k]
-            z = args[c]
-            mult = np.asarray(D["mult"][c], dtype=float)[rows][keep]
-            centres = np.array([np.median(z[idx == j]) for j in range(k)])
-            se2 = lrv / np.maximum(np.bincount(idx, weights=mult**2, minlength=k), 1e-300)
-            if centres[0] <= 0.0 <= centres[-1]:  # the curve's gauge: its value at 0 is fixed
-                b, se2 = b - np.interp(0.0, centres, b), se2 + np.interp(0.0, centres, se2)
-            else:
-                b = b - np.sum(np.bincount(idx, minlength=k) * b) / z.size
-            # a Wald statistic of the bin means against no misfit, with the residual's long-run variance (the
-            # self-check's GLS binned test whitens a smooth misfit away: its p is ~0.06 for a linear Duffing spring)
-            stat = float(np.sum(b**2 / se2))
-            p_value = float(chi2.sf(stat, max(k - 1, 1)))
+            start, k, _, centres = layout[c]
+            b, Ac = beta[start:start + k], A[start:start + k]
+            se2 = np.maximum(lrv * np.sum(Ac**2, axis=1), 1e-300)
+            stat, dof = _wald(b, Ac)
+            p_value = float(chi2.sf(stat / max(lrv, 1e-300), max(dof, 1)))
             if shrink:  # the squared bias less the bin mean's own noise (method of moments)
                 b = np.sign(b) * np.sqrt(np.maximum(b**2 - se2, 0.0))
             out[c] = (centres, b, p_value)
     return out
+
+
+def _parts(model, record, D: dict, keep: np.ndarray) -> list:
+    """Per equation: the residual (masked) orthogonal to what the fit could still change, the arguments of
+    its curves and an orthonormal basis ``Q`` of those columns: a constant, a free gain's input and the
+    columns of the curves linear in their parameters (times their coefficients in the equation) that the
+    fit used. A sparse fit's pruned terms are not among them: their share of the bias (the support taken
+    as known) stays in the residual, as a misfit of the curve (the self-check projects them out too,
+    :func:`._self_check._equation_parts`; an output-error refinement's change of the used coefficients
+    is projected out here as there)."""
+    r_all = np.asarray(model.force_residual(record), dtype=float)
+    r_all = r_all.reshape(r_all.shape[0], -1)
+    n = D["n"]
+    out = []
+    for e in range(D["E"]):
+        rows = slice(e * n, (e + 1) * n)
+        mults = {c: np.asarray(D["mult"][c], dtype=float)[rows] for c in D["args"]}
+        args = {c: np.asarray(z, dtype=float)[keep] for c, z in D["args"].items() if np.any(mults[c] != 0)}
+        cols = [np.ones(int(keep.sum()))]
+        if getattr(model.template, "free_gain", False):
+            cols.append(np.asarray(D["F"], dtype=float)[rows][keep])
+        for c, z in args.items():
+            phi = _features(model.curves[c], z)
+            if phi is not None:
+                used = np.asarray(getattr(model.curves[c], "coefficients", np.ones(phi.shape[1])), dtype=float) != 0
+                used = used if used.size == phi.shape[1] else np.ones(phi.shape[1], bool)
+                cols.extend((phi[:, used] * mults[c][keep][:, None]).T)
+        u, s, _ = np.linalg.svd(np.column_stack(cols), full_matrices=False)
+        Q = u[:, s > 1e-10 * max(float(s.max(initial=0.0)), 1e-300)]
+        r = r_all[keep, e]
+        out.append((r - Q @ (Q.T @ r), args, Q))
+    return out
+
+
+def _wald(b: np.ndarray, Ac: np.ndarray) -> tuple[float, int]:
+    """``b' S^+ b`` with ``S = Ac Ac'`` (the bin means' covariance over the noise variance) and its rank: a
+    Wald statistic of the bin means against no misfit, with the residual's long-run variance as the noise
+    variance (the self-check's GLS binned test whitens a smooth misfit away: its p is ~0.06 for a linear
+    Duffing spring). The full covariance, as the level conditions tie the bins together (a curve held at
+    0 at 0 through its two middle bins, a free curve's level shared by every bin) and the fit's own columns
+    take up noise along them (a polynomial's shapes: so many fewer degrees of freedom)."""
+    u, s, _ = np.linalg.svd(Ac, full_matrices=False)
+    keep = s > 1e-6 * max(float(s.max(initial=0.0)), 1e-300)
+    w = (u[:, keep].T @ b) / s[keep]
+    return float(w @ w), int(keep.sum())
+
+
+def _fixed_at_zero(model) -> set:
+    """The curves whose value at 0 the fit does not estimate, so that their bias there is 0: those the
+    gauge anchors (``f2(0) = 0``: the truth is taken in the same gauge) and those whose representation
+    is 0 at 0 (an odd prior, a basis without a constant: the truth is assumed to be 0 there too)."""
+    template = model.template
+    pinned = {name: bool(getattr(curve, "pinned_at_zero", False)) for name, curve in model.curves.items()}
+    try:
+        conditions = set(template.gauge_conditions(pinned))
+    except Exception:  # a template without gauge bookkeeping: every curve is held at 0, as before
+        return set(model.curves)
+    return {name for name in model.curves if pinned[name] or f"{name}(0) = 0" in conditions}
+
+
+def _offset_equations(model) -> set:
+    """The equations with a free constant of their own (no curve carries it): their residual's constant is
+    the constant's error, not a curve's bias."""
+    template = model.template
+    pinned = {name: bool(getattr(curve, "pinned_at_zero", False)) for name, curve in model.curves.items()}
+    try:
+        return set(template.anchored_offsets(pinned))
+    except Exception:
+        return set()
+
+
+def _level_conditions(p: int, layout: dict, fixed: set, *, free_constant: bool) -> np.ndarray:
+    """Rows ``C`` with ``C beta = 0``: each curve of ``fixed`` has bias 0 at 0 (interpolated between the
+    bin centres; mean zero over its bins, weighted by their samples, where its range does not hold 0);
+    and, where a free curve carries the equation's constant (``free_constant``, some curve not in
+    ``fixed``), the intercept is 0, so that a constant misfit is that curve's bias and not dropped."""
+    rows = []
+    for c, (start, k, weights, centres) in layout.items():
+        row = np.zeros(p)
+        if c in fixed:
+            if centres[0] <= 0.0 <= centres[-1]:
+                row[start:start + k] = _hats(np.zeros(1), centres)[0]
+            else:
+                row[start:start + k] = weights  # the bias's mean over the record
+            rows.append(row)
+    if free_constant and any(c not in fixed for c in layout):
+        row = np.zeros(p)
+        row[0] = 1.0
+        rows.append(row)
+    return np.array(rows).reshape(-1, p)
+
+
+def _hats(z: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """``(len(z), len(centres))``: the weights of linear interpolation between the centres (constant past
+    the outer ones), so that ``_hats(z, c) @ b == np.interp(z, c, b)``."""
+    j = np.clip(np.searchsorted(centres, z) - 1, 0, max(len(centres) - 2, 0))
+    H = np.zeros((z.size, len(centres)))
+    if len(centres) == 1:
+        H[:, 0] = 1.0
+        return H
+    t = np.clip((z - centres[j]) / np.maximum(centres[j + 1] - centres[j], 1e-300), 0.0, 1.0)
+    H[np.arange(z.size), j] = 1.0 - t
+    H[np.arange(z.size), j + 1] = t
+    return H
+
+
+def _constrained_solver(X: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """``A`` with ``A y`` the minimum-norm least-squares solution of ``X beta ~ y`` under ``C beta = 0``."""
+    if C.shape[0] == 0:
+        return np.linalg.pinv(X, rcond=1e-8)
+    _, s, vt = np.linalg.svd(C)
+    rank = int(np.sum(s > 1e-10 * max(1.0, float(s.max()))))
+    Z = vt[rank:].T  # the conditions' null space
+    return Z @ np.linalg.pinv(X @ Z, rcond=1e-8)
 
 
 def _long_run_variance(u: np.ndarray) -> float:
@@ -116,7 +233,7 @@ def _long_run_variance(u: np.ndarray) -> float:
 
 
 def apply_lack_of_fit(model, record, mask=None, *, bins: int | None = None, level: float | None = None) -> list[str]:
-    """Widen ``model``'s posterior by the estimated bias (:func:`lack_of_fit_bias`, the bin means as
+    """Widen ``model``'s posterior by the estimated bias (:func:`lack_of_fit_bias`, the estimates as
     they are: the bias and its estimate's noise) of each curve whose bias test has a p-value below
     ``level`` (default :data:`LACK_OF_FIT_LEVEL`); the other curves keep their bands. ``bins`` default
     :data:`LACK_OF_FIT_BINS`. Returns the curves whose band widened; ``info["posterior"]`` says which
@@ -147,6 +264,6 @@ def apply_lack_of_fit(model, record, mask=None, *, bins: int | None = None, leve
         return []
     model.posterior = LackOfFitPosterior(post, bias)
     model.info["posterior"] = (f"{model.posterior.label}: the bands of {', '.join(sorted(bias))} add the bias "
-                               f"estimated from the residual's means in {bins} quantile bins of their arguments "
+                               f"estimated from the residual, linear between the medians of {bins} quantile bins of their arguments "
                                f"(their bias test has p < {level:g})")
     return sorted(bias)

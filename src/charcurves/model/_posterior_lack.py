@@ -4,7 +4,7 @@ law (a degree-limited polynomial for a soft clip, an odd library for a Stribeck 
 The Laplace posterior of a fit is the posterior of the best curve its representation can take: where
 that curve is not the truth, its band is centred off the truth by the representation's bias and holds
 it only where the bias is smaller than the noise's spread. The bias of curve ``k`` at ``z`` is
-estimated from the residual's means in quantile bins of ``k``'s argument
+estimated from the residual, linear between the medians of quantile bins of ``k``'s argument
 (:func:`charcurves.fitting.lack_of_fit_bias`), ``b_k(z)``; the corrected posterior adds it as one more
 standard normal direction per curve,
 
