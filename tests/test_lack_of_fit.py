@@ -125,3 +125,19 @@ def test_a_curve_that_carries_the_constant_gets_its_offset_in_the_band(stop_reco
     # the spring's gauge holds: its bias is 0 at 0, where the band of the anchored curve has no width
     c2, b2, _ = lack_of_fit_bias(model, record)["f2"]
     assert abs(np.interp(0.0, c2, b2)) < 1e-12
+
+
+def test_an_output_error_fit_gets_no_lack_of_fit_term():
+    """The binned test reads the equation residual; on an output-error fit of a noisy x it holds the
+    estimated derivatives' errors, which passed for misfit (poly-cc on Duffing at 40 dB on x: bands
+    8 times wider than the plain ones, which already cover)."""
+    system = get_system("duffing")
+    record = cc.corrupt(system.simulate(), 40, on="state", seed=0)
+    model = cc.CharacteristicCurves.from_method(method="poly-cc", random_state=0, threads=1).fit(record).model_
+    assert model.info["objective"] == "output-error"
+    assert not isinstance(model.posterior, LackOfFitPosterior)
+    assert model.info["posterior"].endswith("no lack-of-fit term (an output-error fit)")
+    z = np.linspace(*model.curves["f2"].domain, 200)
+    _, lo, hi = model.curve_band("f2", z, level=0.95)
+    inside = np.mean((system.true_curves()["f2"](z) >= lo) & (system.true_curves()["f2"](z) <= hi))
+    assert inside > 0.9
