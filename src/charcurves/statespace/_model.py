@@ -13,7 +13,19 @@ import numpy as np
 
 from .._errors import DataError
 
-__all__ = ["StateSpaceModel", "build_problem", "record_table", "simulate_states", "load_model", "METHOD"]
+__all__ = ["StateSpaceModel", "build_problem", "record_table", "simulate_states", "load_model", "METHOD",
+           "FREE_RUN_STARTS", "START_WINDOW"]
+
+#: how a free run of a record without a given initial state starts (``simulate(record, start=...)``):
+#: ``"window"`` (default) the whole state, hidden entries included, fitted to the record's first
+#: :data:`START_WINDOW` samples (:func:`~._window.estimate_window_state`); ``"first-samples"`` the
+#: measured entries from a quadratic through the first 8 samples (derivatives by differentiating it),
+#: hidden ones at their fitted initial values; ``"fitted"`` the fitted initial state (the training
+#: record's own start)
+FREE_RUN_STARTS = ("window", "first-samples", "fitted")
+#: samples of the default start's window: the nonlinear benchmarks' initialisation window (Bouc-Wen,
+#: Silverbox); measured on the grey-box cases in benchmarks/results/greybox/PROVENANCE.md
+START_WINDOW = 50
 
 
 def record_table(record, measured: dict, forces) -> tuple[dict, float]:
@@ -138,9 +150,11 @@ class StateSpaceModel:
     initial_state : dict
         The ODE state at the record's first sample (hidden states included), as estimated.
     info : dict
-        ``start`` (which start ran), ``stages`` (segment length and loss per stage), ``hidden``,
-        ``gauge_freedoms``, ``gauge_conditions``, ``free_run_rmse`` (from the record's first samples),
-        ``free_run_rmse_fitted_start`` (from :attr:`initial_state`), ``seconds``, ``cpu_seconds``.
+        ``start`` (which start of the fit ran), ``stages`` (segment length and loss per stage), ``hidden``,
+        ``gauge_freedoms``, ``gauge_conditions``, ``free_run_rmse`` (one free run of the record from
+        the default start, the state fitted to its first 50 samples, every sample counted;
+        ``free_run_start`` says so), ``free_run_rmse_fitted_start`` (from :attr:`initial_state`),
+        ``seconds``, ``cpu_seconds``.
 
     Examples
     --------
@@ -164,12 +178,14 @@ class StateSpaceModel:
 
         return ForwardModel(self.structure)
 
-    def simulate(self, record, initial: dict | None = None) -> dict[str, np.ndarray]:
-        """One free run over ``record``'s input from ``initial`` (default: the measured states' first
-        samples, their derivatives by finite differences, hidden states as fitted): every state."""
+    def simulate(self, record, initial: dict | None = None, start: str = "window") -> dict[str, np.ndarray]:
+        """One free run over ``record``'s input from ``initial`` (every ODE state), or else from the
+        start ``start`` estimates (:data:`FREE_RUN_STARTS`; default the whole state fitted to the
+        record's first :data:`START_WINDOW` samples): every state."""
         fm = self._forward()
         cols, dt = record_table(record, self.info["measured"], self.structure.forces)
-        y0 = self.start_state(record) if initial is None else np.array([initial[n] for n in fm.layout], dtype=float)
+        y0 = self.start_state(record, start) if initial is None else \
+            np.array([initial[n] for n in fm.layout], dtype=float)
         free = self.structure.free_gain
         gain = np.array([self.gain]) if free else self.gain
         scalars = {k: np.array([float(v)]) for k, v in (self.info.get("scalars") or {}).items()}
@@ -177,21 +193,47 @@ class StateSpaceModel:
                             int(self.info["substeps"]), self.info["hold"], scalars=scalars)[0]
         return {name: X[:, d] for d, name in enumerate(fm.layout)}
 
-    def start_state(self, record) -> np.ndarray:
+    def start_state(self, record, start: str = "window") -> np.ndarray:
+        """The ODE state (in the forward model's layout) a free run of ``record`` starts from, as
+        ``start`` (:data:`FREE_RUN_STARTS`) estimates it; reads the record's first samples only."""
+        from .._errors import ConfigError
+
+        if start not in FREE_RUN_STARTS:
+            raise ConfigError(f"the free run's start must be one of {', '.join(FREE_RUN_STARTS)}, got {start!r}")
         fm = self._forward()
         cols, dt = record_table(record, self.info["measured"], self.structure.forces)
         y0 = np.array([self.initial_state[n] for n in fm.layout], dtype=float)
+        n = len(cols["t"])
+        if start == "fitted":
+            return y0
+        if start == "window" and n >= 2:
+            from ._window import window_state
+
+            state = window_state(self, cols, dt, min(START_WINDOW, n))
+            return np.array([state[name] for name in fm.layout], dtype=float)
+        m = min(8, n)
         for d, name in enumerate(fm.layout):
             base, _, k = name.partition("__d")
             if base in self.info["measured"]:
-                x = np.asarray(cols[self.info["measured"][base]], dtype=float)[:8]
-                y0[d] = np.polyval(np.polyder(np.polyfit(np.arange(8) * dt, x, 2), int(k or 0)), 0.0)
+                x = np.asarray(cols[self.info["measured"][base]], dtype=float)[:m]
+                y0[d] = np.polyval(np.polyder(np.polyfit(np.arange(m) * dt, x, min(2, m - 1)), int(k or 0)), 0.0)
         return y0
 
-    def free_run_rmse(self, record, initial: dict | None = None) -> dict[str, float]:
-        """RMSE of one free run against each measured column of ``record`` (inf when it diverges)."""
+    @staticmethod
+    def start_description(start: str, n: int) -> str:
+        """What ``start`` does on a record of ``n`` samples, in words (result.json, validate)."""
+        if start == "window" and n >= 2:
+            return (f"initial state (hidden states included) fitted to the first {min(START_WINDOW, n)} samples, "
+                    "the RMSE over all")
+        if start == "fitted":
+            return "from the fitted initial state (the training record's start)"
+        return "from the record's first samples, hidden states at their fitted initial values"
+
+    def free_run_rmse(self, record, initial: dict | None = None, start: str = "window") -> dict[str, float]:
+        """RMSE of one free run (``initial``, or ``start``: as :meth:`simulate`) against each measured
+        column of ``record``, every sample counted (inf when it diverges)."""
         cols, _ = record_table(record, self.info["measured"], self.structure.forces)
-        sim = self.simulate(record, initial)
+        sim = self.simulate(record, initial, start=start)
         out = {}
         for state, column in self.info["measured"].items():
             err = sim[state] - cols[column]
