@@ -121,6 +121,7 @@ def two_dof_x1(start: str, n_starts: int, seed: int, newton: bool = False, **fit
     ranges = {"f1": (v1.min(), v1.max()), "f2": ((x1 - x2).min(), (x1 - x2).max()),
               "f3": (v2.min(), v2.max()), "f4": ((x2 - x1).min(), (x2 - x1).max())}
     truth = system.true_curves()
+    first_samples = model.free_run_rmse(record, start="first-samples")["x1"]  # (before f4 is set below)
     if newton:  # f4 is -f2(-z) by construction
         model.curves["f4"] = lambda z, f2=model.curves["f2"]: -np.asarray(f2(-np.asarray(z, dtype=float)))
     return {"case": "two-dof-x1" + ("-newton" if newton else ""), "start": start, "seed": seed,
@@ -130,7 +131,7 @@ def two_dof_x1(start: str, n_starts: int, seed: int, newton: bool = False, **fit
             **{f"{n}_nrmse": nrmse(model.curves[n], truth[n], *ranges[n]) for n in truth},
             "free_run_start": model.info["free_run_start"],
             "free_run_rmse_train": model.info["free_run_rmse"]["x1"], "noise_rmse_train": float(sigma),
-            "free_run_rmse_train_first_samples": model.free_run_rmse(record, start="first-samples")["x1"],
+            "free_run_rmse_train_first_samples": first_samples,
             "free_run_rmse_train_fitted_start": model.info["free_run_rmse_fitted_start"]["x1"],
             "stages": model.info["stages"], "gauges": model.info["gauge_freedoms"]}
 

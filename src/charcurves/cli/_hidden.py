@@ -143,7 +143,7 @@ def validate_hidden(a) -> int:
     if len(record.t) < 16:
         raise UsageError(f"the span has {len(record.t)} rows; validate needs at least 16 (widen --rows)")
     if a.init_window is None:  # the default start: the state fitted to the first samples, every sample counted
-        initial = dict(zip(model._forward().layout, model.start_state(record).tolist()))
+        initial = model.start_values(record)
         rmse, counted = model.free_run_rmse(record, initial=initial), [0, len(record.t)]
         how = model.start_description("window", len(record.t))
     else:

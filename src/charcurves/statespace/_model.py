@@ -219,6 +219,10 @@ class StateSpaceModel:
                 y0[d] = np.polyval(np.polyder(np.polyfit(np.arange(m) * dt, x, min(2, m - 1)), int(k or 0)), 0.0)
         return y0
 
+    def start_values(self, record, start: str = "window") -> dict[str, float]:
+        """:meth:`start_state` as ODE state -> value (hidden states included)."""
+        return dict(zip(self._forward().layout, self.start_state(record, start).tolist()))
+
     @staticmethod
     def start_description(start: str, n: int) -> str:
         """What ``start`` does on a record of ``n`` samples, in words (result.json, validate)."""
