@@ -1,5 +1,5 @@
 """The default start of a hidden-state model's free run (issue 47): the whole state, hidden entries
-included, fitted to the record's first 50 samples (``start="window"``), every sample counted; the
+included, fitted to the record's first 128 samples (``start="window"``), every sample counted; the
 older start from a quadratic through the first 8 noisy samples stays as ``start="first-samples"``.
 
 On Bouc-Wen (750 Hz, 8e-6 m noise, lightly damped) that older start misjudges the initial velocity
@@ -50,8 +50,8 @@ def bouc_wen():
 
 def test_the_default_start_free_runs_the_true_bouc_wen_model_at_the_noise(bouc_wen):
     model, record, noise = bouc_wen
-    start = model.start_state(record)  # the default: the 50-sample window estimate (no later sample read,
-    state = estimate_window_state(model, record, 50)  # tests/test_hidden_window.py)
+    start = model.start_state(record)  # the default: the 128-sample window estimate (no later sample read,
+    state = estimate_window_state(model, record, 128)  # tests/test_hidden_window.py)
     assert start.tolist() == [state[k] for k in ("x1", "x1__d1", "x2")] and model.start_values(record) == state
     new = model.free_run_rmse(record, initial=state)["x1"]
     old = model.free_run_rmse(record, start="first-samples")["x1"]
@@ -89,7 +89,7 @@ def test_a_fit_says_which_start_its_free_run_used(tmp_path):
     record = TwoTank().simulate(n_points=81, t_end=160.0, seed=0)
     template = StateSpace("x1' = g*F - f1(x1); x2' = f1(x1) - f2(x2)", measured={"x2": "x"})
     model = fit_state_space(template, record, n_starts=1, degree=2, schedule=(16,), max_iter=5, substeps=1)
-    assert model.info["free_run_start"] == ("initial state (hidden states included) fitted to the first 50 samples, "
+    assert model.info["free_run_start"] == ("initial state (hidden states included) fitted to the first 81 samples, "
                                             "the RMSE over all")
     assert model.info["free_run_rmse"] == model.free_run_rmse(record)
     assert model.summary()["free_run_start"] == model.info["free_run_start"]

@@ -110,7 +110,7 @@ def test_validate_cli_refuses_a_window_that_leaves_too_little(tanks, tmp_path, c
 
 
 def test_rows_may_start_inside_the_file(tanks, tmp_path, capsys):
-    """The default start is the state fitted to the span's first 50 samples, so a span may start
+    """The default start is the state fitted to the span's first 128 samples, so a span may start
     mid-record (it had to start at row 0 while the hidden state started at its fitted value)."""
     from charcurves.cli import main
 
@@ -119,7 +119,7 @@ def test_rows_may_start_inside_the_file(tanks, tmp_path, capsys):
     system.simulate(n_points=600, t_end=600.0, seed=3).to_csv(tmp_path / "all.csv")
     args = ["validate", str(tmp_path / "model"), str(tmp_path / "all.csv"), "--rows", "200:400"]
     assert main([*args, "--out", str(tmp_path / "d")]) == 0
-    assert "fitted to the first 50 samples, the RMSE over all" in capsys.readouterr().out
+    assert "fitted to the first 128 samples, the RMSE over all" in capsys.readouterr().out
     doc = json.loads((tmp_path / "d" / "validation.json").read_text())
     assert doc["init_window"] is None and doc["rmse_rows"] == [0, 200]
     assert doc["initial_state"]["x1"] == pytest.approx(float(clean["x1"][200]), rel=2e-3)

@@ -119,7 +119,7 @@ def is_hidden_model(path) -> bool:
 
 def validate_hidden(a) -> int:
     """``validate`` of a state-space model: one free run of the record's input from the whole state
-    (hidden states included) fitted to the record's first 50 samples, the RMSE of every sample per
+    (hidden states included) fitted to the record's first 128 samples, the RMSE of every sample per
     measured state; with ``--init-window N`` fitted to the first N, the RMSE counted after them."""
     from ..fitting import load_model
     from ..io import atomic_write_bytes, json_bytes

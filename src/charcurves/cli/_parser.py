@@ -204,7 +204,7 @@ def build_parser(version: str) -> argparse.ArgumentParser:
     v.add_argument("--init-window", type=cli_number("init_window"), default=None,
                    help="samples at the start of each span that only fit the initial state (velocity included); "
                         "the RMSE is counted after them, as the nonlinear benchmarks do (default: the state fitted "
-                        "to the first 128 samples, 50 for a model with hidden states, the RMSE over all)")
+                        "to the first 128 samples, the RMSE over all)")
     v.add_argument("--out", default=None, help="directory for validation.json and validation.png")
 
     d = sub.add_parser("demo", help="simulate Duffing at 20 dB, fit NN-CC+sym, write results")

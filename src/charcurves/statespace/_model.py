@@ -23,9 +23,10 @@ __all__ = ["StateSpaceModel", "build_problem", "record_table", "simulate_states"
 #: hidden ones at their fitted initial values; ``"fitted"`` the fitted initial state (the training
 #: record's own start)
 FREE_RUN_STARTS = ("window", "first-samples", "fitted")
-#: samples of the default start's window: the nonlinear benchmarks' initialisation window (Bouc-Wen,
-#: Silverbox); measured on the grey-box cases in benchmarks/results/greybox/PROVENANCE.md
-START_WINDOW = 50
+#: samples of the default start's window: the separable family's default (``validate`` without
+#: ``--init-window``); on the grey-box cases 50 samples or fewer leave the two-DOF system's hidden
+#: mass poorly pinned (benchmarks/results/greybox/PROVENANCE.md, section d2-start)
+START_WINDOW = 128
 
 
 def record_table(record, measured: dict, forces) -> tuple[dict, float]:
@@ -152,7 +153,7 @@ class StateSpaceModel:
     info : dict
         ``start`` (which start of the fit ran), ``stages`` (segment length and loss per stage), ``hidden``,
         ``gauge_freedoms``, ``gauge_conditions``, ``free_run_rmse`` (one free run of the record from
-        the default start, the state fitted to its first 50 samples, every sample counted;
+        the default start, the state fitted to its first 128 samples, every sample counted;
         ``free_run_start`` says so), ``free_run_rmse_fitted_start`` (from :attr:`initial_state`),
         ``seconds``, ``cpu_seconds``.
 
