@@ -324,7 +324,6 @@ def test_a_state_space_model_file_without_its_measured_map_is_refused_in_one_lin
 
 @pytest.mark.parametrize("extra, message", [
     (["--rows", "0:12"], "the span has 12 rows; validate needs at least 16 (widen --rows)"),
-    (["--rows", "40:81"], "--rows must start at row 0 for a model with hidden states"),
     (["--x-col", "nothere"], "--x-col does not apply to a model with hidden states"),
     (["--hold", "zoh"], "--hold does not apply to a model with hidden states"),
     (["--substeps", "7"], "--substeps does not apply to a model with hidden states"),
@@ -332,8 +331,8 @@ def test_a_state_space_model_file_without_its_measured_map_is_refused_in_one_lin
     (["--time-col", "none"], "a model with hidden states needs the record's time column; give --time-col NAME"),
 ])
 def test_validate_of_a_hidden_model_refuses_what_it_cannot_honour(tmp_path, capsys, extra, message):
-    """A short span, a span that starts past the hidden initial values, and options of the ordinary
-    validate that a hidden model does not use: one line, exit 2 (they used to crash or be ignored)."""
+    """A short span and options of the ordinary validate that a hidden model does not use: one line,
+    exit 2 (they used to crash or be ignored)."""
     from charcurves.cli import main
 
     record, model = _tank_fit()

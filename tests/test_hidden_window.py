@@ -109,17 +109,26 @@ def test_validate_cli_refuses_a_window_that_leaves_too_little(tanks, tmp_path, c
     assert message in err[0] and "--init-window" in err[0]
 
 
-def test_with_a_window_rows_may_start_inside_the_file(tanks, tmp_path, capsys):
+def test_rows_may_start_inside_the_file(tanks, tmp_path, capsys):
+    """The default start is the state fitted to the span's first 128 samples, so a span may start
+    mid-record (it had to start at row 0 while the hidden state started at its fitted value)."""
     from charcurves.cli import main
 
     system, clean, model = tanks
     model.save(tmp_path / "model")
     system.simulate(n_points=600, t_end=600.0, seed=3).to_csv(tmp_path / "all.csv")
     args = ["validate", str(tmp_path / "model"), str(tmp_path / "all.csv"), "--rows", "200:400"]
-    assert main(args) == 2
-    assert "--rows must start at row 0 for a model with hidden states" in capsys.readouterr().err
+    assert main([*args, "--out", str(tmp_path / "d")]) == 0
+    assert "fitted to the first 128 samples, the RMSE over all" in capsys.readouterr().out
+    doc = json.loads((tmp_path / "d" / "validation.json").read_text())
+    assert doc["init_window"] is None and doc["rmse_rows"] == [0, 200]
+    assert doc["initial_state"]["x1"] == pytest.approx(float(clean["x1"][200]), rel=2e-3)
+    # every sample counted, the window's too: the projected curves' own error, far below the levels' size
+    assert doc["rmse"]["x2"] < 0.02 * float(np.std(clean["x2"][200:400]))
+    record = system.simulate(n_points=600, t_end=600.0, seed=3).slice(slice(200, 400))
+    # from the hidden level's fitted initial value 0 instead (the old default) it is far off
+    assert model.free_run_rmse(record, start="first-samples")["x2"] > 10 * doc["rmse"]["x2"]
     assert main([*args, "--init-window", "40", "--out", str(tmp_path / "v")]) == 0
     doc = json.loads((tmp_path / "v" / "validation.json").read_text())
-    record = system.simulate(n_points=600, t_end=600.0, seed=3).slice(slice(200, 400))
     rmse, initial = window_free_run_error(model, record, 40)
     assert doc["rmse"] == rmse and doc["initial_state"] == initial

@@ -118,8 +118,9 @@ def is_hidden_model(path) -> bool:
 
 
 def validate_hidden(a) -> int:
-    """``validate`` of a state-space model: one free run of the record's input from the measured
-    states' first samples (hidden states at their fitted initial values); RMSE per measured state."""
+    """``validate`` of a state-space model: one free run of the record's input from the whole state
+    (hidden states included) fitted to the record's first 128 samples, the RMSE of every sample per
+    measured state; with ``--init-window N`` fitted to the first N, the RMSE counted after them."""
     from ..fitting import load_model
     from ..io import atomic_write_bytes, json_bytes
     from ._common import UsageError, say
@@ -127,8 +128,8 @@ def validate_hidden(a) -> int:
     folder = a.model if os.path.isfile(os.path.join(a.model, "model.json")) else os.path.join(a.model, "model")
     model = load_model(folder)
     if a.rows and len(a.rows) > 1:
-        raise UsageError("--rows once for a model with hidden states (its hidden initial values belong to the "
-                         "record's start); validate one span")
+        raise UsageError("--rows once for a model with hidden states (its free run starts from the span's own first "
+                         "samples); validate one span per call")
     given = [flag for flag, on in (("--x-col", a.x_col != "x"), ("--force-col", a.force_col != "F"),
                                    ("--sample-rate", a.sample_rate is not None), ("--hold", a.hold is not None),
                                    ("--substeps", a.substeps is not None)) if on]
@@ -137,17 +138,14 @@ def validate_hidden(a) -> int:
                          "measured map's, its input hold and RK4 steps the fit's); drop it")
     if a.time_col is None or str(a.time_col).strip().lower() == "none":
         raise UsageError("a model with hidden states needs the record's time column; give --time-col NAME")
-    span = a.rows[0] if a.rows else None
-    if span is not None and (span.start or 0) != 0 and a.init_window is None:
-        raise UsageError(f"--rows must start at row 0 for a model with hidden states (its hidden initial values are "
-                         "those of the record's start; or give --init-window N to estimate them), got "
-                         f"{span.start}:{'' if span.stop is None else span.stop}")
+    span = a.rows[0] if a.rows else None  # may start anywhere: the state is estimated from the span's first samples
     record = _read_record(a.csv, model.info["measured"], model.structure.forces, a.time_col, span)
     if len(record.t) < 16:
         raise UsageError(f"the span has {len(record.t)} rows; validate needs at least 16 (widen --rows)")
-    if a.init_window is None:
-        rmse, initial, counted = model.free_run_rmse(record), None, [0, len(record.t)]
-        how = "from the record's first samples, hidden states at their fitted initial values"
+    if a.init_window is None:  # the default start: the state fitted to the first samples, every sample counted
+        initial = model.start_values(record)
+        rmse, counted = model.free_run_rmse(record, initial=initial), [0, len(record.t)]
+        how = model.start_description("window", len(record.t))
     else:
         from ..fitting import window_free_run_error
 
@@ -156,17 +154,15 @@ def validate_hidden(a) -> int:
         how = (f"initial state (hidden states included) fitted to the first {int(a.init_window)} samples, the RMSE "
                "counted after them")
     lines = [f"free run of {folder} (state-space, hidden {', '.join(model.info['hidden'])}; {how})",
-             *[f"  {s}: RMSE {v:.5g}" for s, v in rmse.items()]]
-    if initial is not None:
-        lines.append("  estimated initial state: " + ", ".join(f"{k} = {v:.6g}" for k, v in initial.items()))
+             *[f"  {s}: RMSE {v:.5g}" for s, v in rmse.items()],
+             "  estimated initial state: " + ", ".join(f"{k} = {v:.6g}" for k, v in initial.items())]
     failed = [s for s, v in rmse.items() if not v < float("inf")]
     if a.out is not None:
         os.makedirs(a.out, exist_ok=True)
         doc = {"model": folder, "csv": a.csv, "status": "failed" if failed else "ok",
                "rmse": {s: (v if v < float("inf") else None) for s, v in rmse.items()}}
-        doc.update(init_window=None if initial is None else int(a.init_window), rmse_rows=counted)
-        if initial is not None:
-            doc["initial_state"] = initial
+        doc.update(init_window=None if a.init_window is None else int(a.init_window), rmse_rows=counted,
+                   start=how, initial_state=initial)
         atomic_write_bytes(os.path.join(a.out, "validation.json"), json_bytes(doc))
         lines.append(f"wrote {os.path.join(a.out, 'validation.json')}")
     for line in lines:

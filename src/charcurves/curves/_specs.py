@@ -8,6 +8,7 @@ import numpy as np
 from .._errors import ConfigError
 from ._base import AbstractCurve, LinearCurve, normalise_symmetry
 from ._input_map import neural_input_map
+from ._loadable import remember_curve
 
 __all__ = ["Neural", "SparseLibrary", "Basis", "Symbolic", "SPARSE_OPTIMIZERS"]
 
@@ -252,6 +253,7 @@ class SparseLibrary(LinearCurve):
         return BasisFittedCurve(name, argument, domain, basis, [terms[k] for k in active])
 
 
+@remember_curve  # loadable as a LinearFittedCurve's representation (a hidden-state fit's Basis curves)
 class Basis(LinearCurve):
     """A linear combination of closed-form functions of the argument (Parametric).
 

@@ -239,8 +239,10 @@ def fit_state_space(template, record, *, start: str = "growing", n_starts: int =
 
 # ---------------------------------------------------------------------------------------------- pieces
 def _measure_free_runs(model, record) -> dict:
-    """The free-run RMSE of the whole record from its first samples and from the fitted initial state
-    (measured entries as fitted), stored in ``model.info``; returns the first."""
+    """The free-run RMSE of the whole record from the default start (the state fitted to its first
+    samples) and from the fitted initial state (measured entries as fitted), stored in ``model.info``
+    (``free_run_start`` says which start the first ran from); returns the first."""
+    model.info["free_run_start"] = model.start_description("window", len(record.t))
     model.info["free_run_rmse"] = rmse = model.free_run_rmse(record)
     model.info["free_run_rmse_fitted_start"] = model.free_run_rmse(record, initial=model.initial_state)
     return rmse

@@ -1,8 +1,8 @@
 """The fitted state-space model with hidden states: its curves, free runs and initial states.
 
-:func:`build_problem` lays a record out as the multiple-shooting problem of output error
-(:class:`~._shooting.ShootingProblem`) for a state-space template; :func:`simulate_states` runs it
-forward; :class:`StateSpaceModel` is what :func:`~._fit.fit_state_space` returns.
+:class:`StateSpaceModel` is what :func:`~._fit.fit_state_space` returns; its free runs use
+:mod:`._simulate` (re-exported here: :func:`record_table`, :func:`build_problem`,
+:func:`simulate_states`) and start, by default, from :func:`~._window.estimate_window_state`.
 """
 
 from __future__ import annotations
@@ -11,120 +11,22 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import DataError
+from ._simulate import _Simulated, build_problem, record_table, simulate_states
 
-__all__ = ["StateSpaceModel", "build_problem", "record_table", "simulate_states", "load_model", "METHOD"]
+__all__ = ["StateSpaceModel", "build_problem", "record_table", "simulate_states", "load_model", "METHOD",
+           "FREE_RUN_STARTS", "START_WINDOW"]
 
-
-def record_table(record, measured: dict, forces) -> tuple[dict, float]:
-    """The columns a state-space fit reads (``t``, the measured columns, the forcings) and the
-    sample step; DataError naming a missing column or non-uniform sampling."""
-    from ..data import MultiTrajectory, Trajectory
-
-    if isinstance(record, Trajectory):
-        cols = {"t": record.t, "x": record.x, "F": record.F}
-    elif isinstance(record, MultiTrajectory):
-        cols = {"t": record.t, **record.states, **record.forces}
-    else:
-        raise DataError(f"expected a Trajectory or MultiTrajectory, got {type(record).__name__}")
-    cols = {k: np.asarray(v, dtype=float) for k, v in cols.items()}
-    have = ", ".join(cols)
-    for state, column in measured.items():
-        if column not in cols or column in ("t", *forces):
-            raise DataError(f"measured maps {state} to the column {column!r}, which the record lacks as a state; "
-                            f"its columns are {have}: give e.g. measured={{'{state}': '{next(iter(cols.keys() - {'t'}), 'x')}'}}")
-    for f in forces:
-        if f not in cols:
-            raise DataError(f"the template's forcing {f} is not a column of the record ({have}); rename the forcing "
-                            "in the equation or give that column")
-    steps = np.diff(cols["t"])
-    dt = float(np.median(steps))
-    if not dt > 0 or float(np.max(np.abs(steps - dt))) > 1e-3 * dt:
-        raise DataError("a hidden-state fit needs uniform sampling (the free run is driven by the sampled input); "
-                        "resample the record onto a uniform grid")
-    return cols, dt
-
-
-def build_problem(fm, structure, curves, free_gain: bool, gain: float, cols: dict, dt: float, sub: int, hold: str,
-                  starts, L: int, out_index, meas, scale, continuity: float, scalars=()):
-    """The shooting problem of ``curves`` (list of ``(name, parametrisation, center (B,), half (B,),
-    shift (B,))``) on segments ``starts`` of ``L`` samples, fitting ``meas`` ``(S, L, O)``."""
-    import torch
-
-    from ..data import stage_inputs
-    from ..objectives import CurveBlock, ShootingProblem
-
-    dtype = torch.float64
-    T = lambda a: torch.as_tensor(np.asarray(a, dtype=float), dtype=dtype)  # noqa: E731
-    blocks = [CurveBlock(name, param, T(np.asarray(c)[:, None]), T(np.asarray(h)[:, None]),
-                         T(np.ones((len(c), 1))), T(np.asarray(s)[:, None])) for name, param, c, h, s in curves]
-    idx = starts[None, :] * sub + np.arange((L - 1) * sub)[:, None]
-    inputs = {}
-    for f in structure.forces:
-        ua, um, ub = stage_inputs(np.asarray(cols[f], dtype=float), sub, hold)
-        inputs[f] = tuple(T(a[idx]) for a in (ua, um, ub))
-    t = np.asarray(cols["t"], dtype=float)
-    frac = np.arange((L - 1) * sub) / sub
-    tt = t[starts[None, :] + np.floor(frac).astype(int)[:, None]] + (frac - np.floor(frac))[:, None] * dt
-    times = tuple(T(tt + c * dt / sub) for c in (0.0, 0.5, 1.0))
-    return ShootingProblem(fm, blocks, list(scalars), [], free_gain, float(gain), inputs, times, T(meas), list(out_index),
-                           T(scale), dt, sub, continuity, torch.as_tensor(np.diff(starts) == L - 1, dtype=torch.bool),
-                           weight_decay=1e-10)
-
-
-def simulate_states(fm, curves, gain, y0, cols, dt, sub, hold, segments=None, scalars=None) -> np.ndarray:
-    """Every ODE state ``(B, n, D)``: one free run of the record from ``y0`` ``(B, D)``, or with
-    ``segments = (y0 (B, S, D), starts, L)`` each segment from its own initial state; ``scalars``:
-    name -> ``(B,)`` values of the template's scalars."""
-    import torch
-
-    n = len(cols["t"])
-    D = fm.n_state
-    if segments is None:
-        ys, starts, L = np.asarray(y0, dtype=float)[:, None, :], np.array([0]), n
-    else:
-        ys, starts, L = segments
-    B, S = ys.shape[0], starts.size
-    specs = [(c.name, c.param(), c.center, c.half, getattr(c, "shift", np.zeros(B))) for c in curves]
-    free = np.ndim(gain) > 0
-    problem = build_problem(fm, fm.template, specs, free, float(np.mean(gain)) if not free else 1.0, cols, dt, sub,
-                            hold, starts, L, list(range(D)), np.zeros((S, L, D)), np.ones(D), 0.0,
-                            scalars=list(scalars or {}))
-    parts = [torch.as_tensor(c.theta, dtype=torch.float64) for c in curves]
-    parts += [torch.as_tensor(np.broadcast_to(np.asarray(v, dtype=float), (B,))[:, None].copy()) for v in
-              (scalars or {}).values()]
-    if free:
-        parts.append(torch.as_tensor(np.asarray(gain, dtype=float)[:, None]))
-    parts.append(torch.as_tensor(ys.reshape(B, -1), dtype=torch.float64))
-    with torch.no_grad():
-        X, _, _ = problem.simulate(torch.cat(parts, dim=1), need_jac=False)  # (B, S, L, D)
-    X = X.double().numpy()
-    out = np.full((B, n, D), np.nan)
-    for s, a in enumerate(starts):
-        out[:, a:a + L] = X[:, s]
-    return out
-
-
-class _Simulated:
-    """A fitted curve in the form :func:`simulate_states` takes."""
-
-    def __init__(self, curve, B: int = 1):
-        from ..curves import LinearFittedCurve, LinearParametrisation, trainable
-
-        self.name = curve.name
-        if not isinstance(curve, LinearFittedCurve):  # a network or a closed form (one member, out_scale 1)
-            refit = trainable(curve)
-            self._param, self.theta = refit.param, np.repeat(refit.theta[:1], B, axis=0)
-            self.center, self.half = np.full(B, refit.center), np.full(B, refit.half_width)
-            self.shift = np.full(B, refit.shift)
-            return
-        self._param = LinearParametrisation(curve.representation)
-        self.center, self.half = np.full(B, curve.center), np.full(B, curve.half_width)
-        self.shift = np.full(B, curve.constant + curve.shift)
-        self.theta = np.repeat(curve.coefficients[None], B, axis=0)
-
-    def param(self):
-        return self._param
+#: how a free run of a record without a given initial state starts (``simulate(record, start=...)``):
+#: ``"window"`` (default) the whole state, hidden entries included, fitted to the record's first
+#: :data:`START_WINDOW` samples (:func:`~._window.estimate_window_state`); ``"first-samples"`` the
+#: measured entries from a quadratic through the first 8 samples (derivatives by differentiating it),
+#: hidden ones at their fitted initial values; ``"fitted"`` the fitted initial state (the training
+#: record's own start)
+FREE_RUN_STARTS = ("window", "first-samples", "fitted")
+#: samples of the default start's window: the separable family's default (``validate`` without
+#: ``--init-window``); on the grey-box cases 50 samples or fewer leave the two-DOF system's hidden
+#: mass poorly pinned (benchmarks/results/greybox/PROVENANCE.md, section d2-start)
+START_WINDOW = 128
 
 
 class StateSpaceModel:
@@ -138,9 +40,11 @@ class StateSpaceModel:
     initial_state : dict
         The ODE state at the record's first sample (hidden states included), as estimated.
     info : dict
-        ``start`` (which start ran), ``stages`` (segment length and loss per stage), ``hidden``,
-        ``gauge_freedoms``, ``gauge_conditions``, ``free_run_rmse`` (from the record's first samples),
-        ``free_run_rmse_fitted_start`` (from :attr:`initial_state`), ``seconds``, ``cpu_seconds``.
+        ``start`` (which start of the fit ran), ``stages`` (segment length and loss per stage), ``hidden``,
+        ``gauge_freedoms``, ``gauge_conditions``, ``free_run_rmse`` (one free run of the record from
+        the default start, the state fitted to its first 128 samples, every sample counted;
+        ``free_run_start`` says so), ``free_run_rmse_fitted_start`` (from :attr:`initial_state`),
+        ``seconds``, ``cpu_seconds``.
 
     Examples
     --------
@@ -164,12 +68,14 @@ class StateSpaceModel:
 
         return ForwardModel(self.structure)
 
-    def simulate(self, record, initial: dict | None = None) -> dict[str, np.ndarray]:
-        """One free run over ``record``'s input from ``initial`` (default: the measured states' first
-        samples, their derivatives by finite differences, hidden states as fitted): every state."""
+    def simulate(self, record, initial: dict | None = None, start: str = "window") -> dict[str, np.ndarray]:
+        """One free run over ``record``'s input from ``initial`` (every ODE state), or else from the
+        start ``start`` estimates (:data:`FREE_RUN_STARTS`; default the whole state fitted to the
+        record's first :data:`START_WINDOW` samples): every state."""
         fm = self._forward()
         cols, dt = record_table(record, self.info["measured"], self.structure.forces)
-        y0 = self.start_state(record) if initial is None else np.array([initial[n] for n in fm.layout], dtype=float)
+        y0 = self.start_state(record, start) if initial is None else \
+            np.array([initial[n] for n in fm.layout], dtype=float)
         free = self.structure.free_gain
         gain = np.array([self.gain]) if free else self.gain
         scalars = {k: np.array([float(v)]) for k, v in (self.info.get("scalars") or {}).items()}
@@ -177,21 +83,51 @@ class StateSpaceModel:
                             int(self.info["substeps"]), self.info["hold"], scalars=scalars)[0]
         return {name: X[:, d] for d, name in enumerate(fm.layout)}
 
-    def start_state(self, record) -> np.ndarray:
+    def start_state(self, record, start: str = "window") -> np.ndarray:
+        """The ODE state (in the forward model's layout) a free run of ``record`` starts from, as
+        ``start`` (:data:`FREE_RUN_STARTS`) estimates it; reads the record's first samples only."""
+        from .._errors import ConfigError
+
+        if start not in FREE_RUN_STARTS:
+            raise ConfigError(f"the free run's start must be one of {', '.join(FREE_RUN_STARTS)}, got {start!r}")
         fm = self._forward()
         cols, dt = record_table(record, self.info["measured"], self.structure.forces)
         y0 = np.array([self.initial_state[n] for n in fm.layout], dtype=float)
+        n = len(cols["t"])
+        if start == "fitted":
+            return y0
+        if start == "window" and n >= 2:
+            from ._window import window_state
+
+            state = window_state(self, cols, dt, min(START_WINDOW, n))
+            return np.array([state[name] for name in fm.layout], dtype=float)
+        m = min(8, n)
         for d, name in enumerate(fm.layout):
             base, _, k = name.partition("__d")
             if base in self.info["measured"]:
-                x = np.asarray(cols[self.info["measured"][base]], dtype=float)[:8]
-                y0[d] = np.polyval(np.polyder(np.polyfit(np.arange(8) * dt, x, 2), int(k or 0)), 0.0)
+                x = np.asarray(cols[self.info["measured"][base]], dtype=float)[:m]
+                y0[d] = np.polyval(np.polyder(np.polyfit(np.arange(m) * dt, x, min(2, m - 1)), int(k or 0)), 0.0)
         return y0
 
-    def free_run_rmse(self, record, initial: dict | None = None) -> dict[str, float]:
-        """RMSE of one free run against each measured column of ``record`` (inf when it diverges)."""
+    def start_values(self, record, start: str = "window") -> dict[str, float]:
+        """:meth:`start_state` as ODE state -> value (hidden states included)."""
+        return dict(zip(self._forward().layout, self.start_state(record, start).tolist()))
+
+    @staticmethod
+    def start_description(start: str, n: int) -> str:
+        """What ``start`` does on a record of ``n`` samples, in words (result.json, validate)."""
+        if start == "window" and n >= 2:
+            return (f"initial state (hidden states included) fitted to the first {min(START_WINDOW, n)} samples, "
+                    "the RMSE over all")
+        if start == "fitted":
+            return "from the fitted initial state (the training record's start)"
+        return "from the record's first samples, hidden states at their fitted initial values"
+
+    def free_run_rmse(self, record, initial: dict | None = None, start: str = "window") -> dict[str, float]:
+        """RMSE of one free run (``initial``, or ``start``: as :meth:`simulate`) against each measured
+        column of ``record``, every sample counted (inf when it diverges)."""
         cols, _ = record_table(record, self.info["measured"], self.structure.forces)
-        sim = self.simulate(record, initial)
+        sim = self.simulate(record, initial, start=start)
         out = {}
         for state, column in self.info["measured"].items():
             err = sim[state] - cols[column]

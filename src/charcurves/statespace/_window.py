@@ -16,7 +16,7 @@ import numpy as np
 
 from .._errors import ConfigError
 
-__all__ = ["check_window", "estimate_window_state", "window_free_run_error"]
+__all__ = ["check_window", "estimate_window_state", "window_free_run_error", "window_state"]
 
 #: samples left after the window to count the RMSE on (as the separable family's ``validate``)
 MIN_COUNTED = 16
@@ -37,7 +37,7 @@ def check_window(init_window, n: int) -> int:
 
 def _runner(model, cols, dt, n):
     """``run(y0 (B, D)) -> (B, n, D)``: free runs of the first ``n`` samples from ``B`` initial states."""
-    from ._model import _Simulated, simulate_states
+    from ._simulate import _Simulated, simulate_states
 
     fm = model._forward()
     head = {k: np.asarray(v, dtype=float)[:n] for k, v in cols.items()}
@@ -105,12 +105,18 @@ def estimate_window_state(model, record, n_fit: int) -> dict[str, float]:
     >>> sorted(state)  # every ODE state, the hidden x1 included
     ['x1', 'x2']
     """
-    from scipy.optimize import least_squares
-
-    from ._model import record_table
+    from ._simulate import record_table
 
     cols, dt = record_table(record, model.info["measured"], model.structure.forces)
     n = check_window(n_fit, len(cols["t"]))
+    return window_state(model, cols, dt, n)
+
+
+def window_state(model, cols: dict, dt: float, n: int) -> dict[str, float]:
+    """:func:`estimate_window_state` on the columns of :func:`~._simulate.record_table` without the
+    window's bounds check (``2 <= n <= len(cols["t"])``): the start of a free run that counts every sample."""
+    from scipy.optimize import least_squares
+
     fm, run = _runner(model, cols, dt, n)
     y_start, scale, grids = _first_guess(model, fm, cols, dt, n)
     out_index = [fm.layout.index(s) for s in model.info["measured"]]
@@ -167,7 +173,7 @@ def window_free_run_error(model, record, init_window: int) -> tuple[dict[str, fl
     >>> sorted(rmse), sorted(initial)
     (['x2'], ['x1', 'x2'])
     """
-    from ._model import record_table
+    from ._simulate import record_table
 
     cols, _ = record_table(record, model.info["measured"], model.structure.forces)
     skip = check_window(init_window, len(cols["t"]))
