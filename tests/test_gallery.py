@@ -136,6 +136,14 @@ def test_every_script_is_run_here_or_elsewhere():
     assert set(_scripts()) == set(RUNS) | set(ELSEWHERE)
 
 
+@pytest.mark.parametrize("name", sorted(RUNS))
+def test_run_as_a_script_it_calls_the_main_tested_here(name):
+    """The fixture calls main(argv); ``python examples/<name>.py ...`` must run that same main on its arguments."""
+    source = (EXAMPLES / f"{name}.py").read_text()
+    assert re.search(r'\nif __name__ == "__main__":\n    (sys\.exit\()?main\(\)\)?\n', source), name
+    assert re.search(r"\ndef main\(argv=None\)", source) and "parse_args(argv)" in source, name
+
+
 @pytest.mark.parametrize("name", _scripts())
 def test_every_script_has_a_gallery_entry(name):
     """docs/gallery.md includes the script's source (the include-markdown plugin's include) and shows its committed figure."""
