@@ -14,6 +14,9 @@ import pytest
 
 from charcurves.cli import main
 
+# first_runs (one fit per method, ~6 CPU s) is shared by the tests below: all of them in one xdist worker
+pytestmark = pytest.mark.xdist_group("determinism")
+
 FAST = ["--no-figure", "--quiet", "--seed", "3"]
 SR_FAST = ["--sr-generations", "10"]  # only where the method runs symbolic regression
 
@@ -108,9 +111,10 @@ def test_separate_processes_with_different_hash_seeds_agree(csv, tmp_path):
     assert outputs[0] == outputs[1]
 
 
-def test_two_processes_give_byte_identical_result_json_for_nn_cc_sym(csv, tmp_path):
-    """Issue 25, fast tier: two fresh `charcurves fit --method nn-cc+sym` processes on the same CSV (with
-    different hash seeds) write the same result.json bytes and the same model arrays.
+def test_a_fresh_process_gives_the_byte_identical_result_json_for_nn_cc_sym(csv, tmp_path, first_runs):
+    """Issue 25, fast tier: a fresh `charcurves fit --method nn-cc+sym` process on the same CSV (with its
+    own hash seed) writes the result.json bytes and the model arrays of the same fit run in this process
+    (first_runs: this interpreter's hash seed, heap and thread settings).
 
     The last-bit differences seen before (1 of 21 processes in the issue; 3 of 80 when measured for
     it, none of 100 after the fix) came from torch.linalg.lstsq's default CPU driver, gelsy: PyTorch
@@ -119,24 +123,21 @@ def test_two_processes_give_byte_identical_result_json_for_nn_cc_sym(csv, tmp_pa
     leftover heap contents. The warm start now names the gelsd driver (train/_warm.py); see the
     test below.
 
-    The second process has OMP_NUM_THREADS=2: the fit runs with its own thread count (``--threads``,
-    default 1) from the warm start to the output error. Before, the warm start ran outside it with
-    torch's default count (the number of cores unless OMP_NUM_THREADS says otherwise), which changed
-    the last bits of result.json between a shell with OMP_NUM_THREADS=1 and one without."""
-    procs = []
-    for i in (1, 2):  # side by side: half the wall time on two cores
-        env = dict(os.environ, OMP_NUM_THREADS=str(i), PYTHONHASHSEED=str(i))
-        procs.append(subprocess.Popen([sys.executable, "-m", "charcurves", "fit", str(csv), "--method", "nn-cc+sym",
-                                       "--out", str(tmp_path / f"p{i}"), *FAST], env=env, text=True,
-                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE))
-    outputs = []
-    for i, proc in zip((1, 2), procs):
-        _, stderr = proc.communicate(timeout=300)
-        assert proc.returncode == 0, stderr
-        out = tmp_path / f"p{i}"
-        outputs.append(((out / "result.json").read_bytes(), (out / "model" / "arrays.safetensors").read_bytes()))
-    assert outputs[0][0] == outputs[1][0], _first_difference(json.loads(outputs[0][0]), json.loads(outputs[1][0]))
-    assert outputs[0][1] == outputs[1][1]
+    The fresh process has OMP_NUM_THREADS=2 (this one runs torch on one thread: tests/conftest.py):
+    the fit runs with its own thread count (``--threads``, default 1) from the warm start to the output
+    error. Before, the warm start ran outside it with torch's default count (the number of cores unless
+    OMP_NUM_THREADS says otherwise), which changed the last bits of result.json between a shell with
+    OMP_NUM_THREADS=1 and one without. (One fresh process against the in-process fit, not two fresh
+    ones: each fresh interpreter pays ~5 CPU s of imports.)"""
+    first, first_dir = first_runs("nn-cc+sym")
+    env = dict(os.environ, OMP_NUM_THREADS="2", PYTHONHASHSEED="2")
+    out = tmp_path / "p2"
+    r = subprocess.run([sys.executable, "-m", "charcurves", "fit", str(csv), "--method", "nn-cc+sym", "--out", str(out),
+                        *FAST], env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    second = (out / "result.json").read_bytes()
+    assert first == second, _first_difference(json.loads(first), json.loads(second))
+    assert (first_dir / "model" / "arrays.safetensors").read_bytes() == (out / "model" / "arrays.safetensors").read_bytes()
 
 
 def test_no_least_squares_on_the_cpu_uses_the_pivot_reading_gelsy_driver(csv, tmp_path, monkeypatch):

@@ -3,15 +3,15 @@ and the CLI path (fit with output-error refinement, validate) on the same data."
 
 from __future__ import annotations
 
+import contextlib
+import importlib.util
+import io
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-# quick_run (~30 CPU s) is made once: every test of this module in one xdist worker (--dist loadgroup)
+# quick_run (~25 CPU s) is made once: every test of this module in one xdist worker (--dist loadgroup)
 pytestmark = pytest.mark.xdist_group("silverbox")
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -23,14 +23,22 @@ PUBLISHED = {"c": 41.0, "k1": 1.850e5, "k3": 7.47e5, "g": 1.947e5}
 
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory, silverbox_csv):
+    """``python examples/silverbox.py --quick --data <csv> --out <folder>``, run as its main() in this
+    process (one thread, the Agg backend: tests/conftest.py), which saves a fresh interpreter's imports."""
+    import matplotlib.pyplot as plt
+
     out = tmp_path_factory.mktemp("silverbox")
-    env = dict(os.environ, OMP_NUM_THREADS="1", MPLBACKEND="Agg")
-    proc = subprocess.run(
-        [sys.executable, str(SCRIPT), "--quick", "--data", str(silverbox_csv), "--out", str(out)],
-        capture_output=True, text=True, timeout=300, env=env, cwd=str(ROOT),
-    )
-    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    return out, json.loads((out / "results.json").read_text()), proc.stdout
+    spec = importlib.util.spec_from_file_location("silverbox_example", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    stdout = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(stdout):
+            spec.loader.exec_module(module)
+            code = module.main(["--quick", "--data", str(silverbox_csv), "--out", str(out)])
+    finally:
+        plt.close("all")
+    assert code == 0, stdout.getvalue()[-3000:]
+    return out, json.loads((out / "results.json").read_text()), stdout.getvalue()
 
 
 def _rel(value, ref):

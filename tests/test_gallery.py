@@ -1,8 +1,9 @@
 """The gallery (docs/gallery.md): every example script runs on a short record and its numbers hold.
 
-Each script of examples/ runs in its own process (OMP_NUM_THREADS=1, MPLBACKEND=Agg, a 500-sample
-record), the scripts side by side on the machine's cores, so the module takes the time of the
-slowest few. The bounds are about 2-3x the RMSE measured on these settings (noted beside each), so
+Each script of examples/ runs once, in this process (its main() with the command line of a short
+run: a 500-sample record; one thread and the Agg backend, as tests/conftest.py sets them), so that
+the scripts do not pay a fresh interpreter's imports of torch, sympy and matplotlib each (~5 CPU s
+a script). The bounds are about 2-3x the RMSE measured on these settings (noted beside each), so
 that a wrong model (a missing term, a lost jump, no output-error refit) fails them.
 
 examples/silverbox.py needs the real measurements and has its own test (test_examples_silverbox.py);
@@ -11,16 +12,16 @@ examples/custom_curve.py is run by test_composition.py. Both must still have a g
 
 from __future__ import annotations
 
+import contextlib
+import importlib.util
+import io
 import os
 import re
-import subprocess
-import sys
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
 
-# the scripts' runs (the module fixture below, ~40 CPU s) are made once: every test of this module in one
+# the scripts' runs (the module fixture below, ~25 CPU s) are made once: every test of this module in one
 # xdist worker (--dist loadgroup), not once in each worker that draws one of them
 pytestmark = pytest.mark.xdist_group("gallery")
 
@@ -30,7 +31,7 @@ GALLERY = ROOT / "docs" / "gallery.md"
 FIGURES = ROOT / "docs" / "gallery"
 
 #: script -> (arguments for a short run, the PNG it writes)
-RUNS = {  # the slowest first, so that the concurrent runs end together
+RUNS = {
     "two_dof": (["--samples", "500"], "two_dof.png"),
     "measured_record": (["--samples", "500"], "measured_record.png"),
     "duffing": (["--samples", "500"], "duffing.png"),
@@ -41,24 +42,28 @@ RUNS = {  # the slowest first, so that the concurrent runs end together
 ELSEWHERE = {"silverbox": "silverbox_free_run.png", "custom_curve": None}
 
 
-def _run(name: str, out: Path) -> subprocess.CompletedProcess:
+def _run(name: str, out: Path) -> str:
+    """What examples/<name>.py prints when run as ``python <name>.py --out <out> <its short-run arguments>``."""
+    import matplotlib.pyplot as plt
+
     args, _ = RUNS[name]
-    env = dict(os.environ, OMP_NUM_THREADS="1", MPLBACKEND="Agg",
-               PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT / "src"), os.environ.get("PYTHONPATH")])))
-    return subprocess.run([sys.executable, str(EXAMPLES / f"{name}.py"), "--out", str(out), *args],
-                          capture_output=True, text=True, timeout=300, env=env, cwd=str(out))
+    spec = importlib.util.spec_from_file_location(f"gallery_{name}", EXAMPLES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    stdout = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(stdout):
+            spec.loader.exec_module(module)
+            module.main(["--out", str(out), *args])
+    finally:
+        plt.close("all")
+    return stdout.getvalue()
 
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
-    """name -> (stdout, output folder); the scripts run concurrently, one thread each."""
+    """name -> (stdout, output folder)."""
     outs = {name: tmp_path_factory.mktemp(name) for name in RUNS}
-    workers = max(1, min(len(RUNS), os.cpu_count() or 1))
-    with ThreadPoolExecutor(workers) as pool:
-        procs = dict(zip(RUNS, pool.map(lambda n: _run(n, outs[n]), RUNS)))
-    for name, proc in procs.items():
-        assert proc.returncode == 0, f"{name}: " + proc.stdout[-2000:] + proc.stderr[-3000:]
-    return {name: (procs[name].stdout, outs[name]) for name in RUNS}
+    return {name: (_run(name, outs[name]), outs[name]) for name in RUNS}
 
 
 def _rmse(text: str) -> dict[str, float]:
@@ -129,6 +134,14 @@ def _scripts() -> list[str]:
 
 def test_every_script_is_run_here_or_elsewhere():
     assert set(_scripts()) == set(RUNS) | set(ELSEWHERE)
+
+
+@pytest.mark.parametrize("name", sorted(RUNS))
+def test_run_as_a_script_it_calls_the_main_tested_here(name):
+    """The fixture calls main(argv); ``python examples/<name>.py ...`` must run that same main on its arguments."""
+    source = (EXAMPLES / f"{name}.py").read_text()
+    assert re.search(r'\nif __name__ == "__main__":\n    (sys\.exit\()?main\(\)\)?\n', source), name
+    assert re.search(r"\ndef main\(argv=None\)", source) and "parse_args(argv)" in source, name
 
 
 @pytest.mark.parametrize("name", _scripts())

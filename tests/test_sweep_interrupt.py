@@ -105,10 +105,13 @@ def test_signal_stops_pool_sweep_keeps_rows_and_resumes(tmp_path, sig):
     assert all(r[4] == "ok" and r[5] is not None and 0.0 <= r[5] < 0.1 for r in rows)
     assert time.monotonic() - t0 < 60
 
-    done = subprocess.run([sys.executable, str(script), db, "none"], capture_output=True, text=True, env=env,
-                          timeout=120)
-    assert done.returncode == 0, done.stderr
-    assert f"12 jobs: {n} already stored, {12 - n} run" in done.stdout
+    # the rerun in this process, on one worker (a fresh driver and two spawned workers would pay ~15 CPU s
+    # of imports; the rerun of the same two-worker command is test_signal_stops_two_worker_benchmark_and_rerun_resumes)
+    from charcurves.experiments import Sweep, run_sweep
+
+    done = run_sweep(Sweep(systems=["duffing"], methods=["parametric"], snr_db=[40, 20, 0], realizations=4), db,
+                     workers=1, progress=False)
+    assert f"12 jobs: {n} already stored, {12 - n} run" in str(done)
     rows2 = _rows(db)
     assert len(rows2) == 12 and len({r[:4] for r in rows2}) == 12
     assert set(rows) <= set(rows2) and all(r[4] == "ok" for r in rows2)
