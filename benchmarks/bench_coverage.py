@@ -18,8 +18,8 @@ plain Gaussian one (``gauss``), and (``--bootstrap N``, the first ``--bootstrap-
 the wild-bootstrap bands of charcurves.selection with N refits.
 
 Results: benchmarks/results/coverage/coverage.json (rows) and coverage.md (the table of
-docs/uncertainty.md). Run: ``python benchmarks/bench_coverage.py --realisations 100``; ``--render`` only
-rewrites the table of docs/uncertainty.md from the committed results.
+docs/uncertainty-coverage.md). Run: ``python benchmarks/bench_coverage.py --realisations 100``; ``--render`` only
+rewrites the table of docs/uncertainty-coverage.md from the committed results.
 """
 
 from __future__ import annotations
@@ -143,7 +143,7 @@ def _with_kind(post, kind):
 
 
 def table(rows) -> str:
-    """The Markdown table of docs/uncertainty.md."""
+    """The Markdown table of docs/uncertainty-coverage.md."""
     out = ["| setting | method | band | grid inside 95 % band | inside everywhere | gain inside | constant inside | "
            "half-width / sd(truth) | realisations | seconds (band / fit) |",
            "|---|---|---|---|---|---|---|---|---|---|"]
@@ -170,7 +170,7 @@ def table(rows) -> str:
     return "\n".join(out) + "\n"
 
 
-PAGE = os.path.join(os.path.dirname(HERE), "docs", "uncertainty.md")
+PAGE = os.path.join(os.path.dirname(HERE), "docs", "uncertainty-coverage.md")
 
 
 def render(results_dir: str = OUT, page: str = PAGE, check: bool = False) -> bool:
@@ -222,7 +222,7 @@ def simultaneous_lines(rows) -> list[str]:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--render", action="store_true",
-                    help="only rewrite the table of docs/uncertainty.md from the committed coverage.json")
+                    help="only rewrite the table of docs/uncertainty-coverage.md from the committed coverage.json")
     ap.add_argument("--realisations", type=int, default=100)
     ap.add_argument("--bootstrap", type=int, default=20, help="refits per bootstrap band (0: none)")
     ap.add_argument("--bootstrap-records", type=int, default=20)
