@@ -59,7 +59,7 @@ def _decide(record, rule: str, seed: int, family: str) -> dict[str, dict]:
 def _score(truth: str, proposal: str, testable: bool) -> str:
     if not testable:
         return "untestable"
-    if proposal == truth or (proposal == "none" and truth == "none"):
+    if proposal == truth:
         return "right"
     if proposal != "none":
         return "wrong prior"

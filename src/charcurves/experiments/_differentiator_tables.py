@@ -13,7 +13,7 @@ import os
 
 import numpy as np
 
-from ._records_tables import _e
+from ._records_tables import _e, _table
 
 __all__ = ["differentiator_tables"]
 
@@ -34,11 +34,6 @@ def _f(x: float) -> str:
 
 def _bold(text: str, on: bool) -> str:
     return f"**{text}**" if on else text
-
-
-def _table(header: list[str], rows: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    return "\n".join(lines + ["| " + " | ".join(r) + " |" for r in rows]) + "\n"
 
 
 def derivative_table(summary: dict, which: str = "a") -> str:

@@ -20,7 +20,7 @@ from collections.abc import Mapping
 from . import _paper_values as paper
 from ._appendix_f import _a_rows, protocol_frames
 from ._differentiator_tables import differentiator_tables
-from ._records_tables import records_tables
+from ._records_tables import _table, records_tables
 from ._selection_tables import selection_tables
 from ._zoo_coverage_tables import zoo_coverage_tables
 from ._report_inputs import committed_csv, read_results_csv
@@ -44,12 +44,6 @@ def _pair(a: tuple | None) -> str:
 
 def _bias(b: tuple) -> str:
     return f"({b[0]:.3f}, {_g(b[1])})"
-
-
-def _table(header: list[str], rows: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(r) + " |" for r in rows]
-    return "\n".join(lines) + "\n"
 
 
 def study_table(df, system: str, lyapunov_time: float | None = None) -> str:

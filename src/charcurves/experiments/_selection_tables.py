@@ -11,16 +11,12 @@ from __future__ import annotations
 import json
 import os
 
+from ._records_tables import _table
+
 __all__ = ["selection_tables", "parity_table", "records_joint_table", "records_outside_table"]
 
 _RULES = {"1": "one sign per sample", "auto": "one sign per block (default)"}
 _SETTINGS = {"F25": "25 dB on F, derivatives given", "x30": "30 dB on x only"}
-
-
-def _table(header: list[str], rows: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(r) + " |" for r in rows]
-    return "\n".join(lines) + "\n"
 
 
 def _g(x: float | None) -> str:

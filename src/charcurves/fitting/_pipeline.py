@@ -281,16 +281,7 @@ def _check(est, ctx, model, raw, k: int) -> None:
         via = "the curves (errors in variables: noisy measured x and x' columns)"
     self_check(model, prepared, mask, estimated=estimated, snr_db=est.snr_db, state_noise=noise, raw=raw,
                state_noise_via=via)
-    if model.info.get("objective") == "output-error":
-        # the binned test reads the equation residual, whose estimated derivatives an output-error fit does
-        # not fit: their errors pass for misfit (Duffing, 40 dB on x: bands 5-20 times wider, the plain
-        # ones already covering; benchmarks/results/zoo-coverage/duffing-level-fix-oe.txt)
-        post = getattr(model, "posterior", None)
-        if post is not None:
-            label = str(getattr(post, "label", None) or getattr(post, "method", "laplace"))
-            model.info["posterior"] = f"{label}; no lack-of-fit term (an output-error fit)"
-    else:
-        apply_lack_of_fit(model, prepared, mask)  # the bands of curves the residual says are misfitted
+    apply_lack_of_fit(model, prepared, mask)  # the bands of curves the residual says are misfitted
 
 
 def _post_sr(est, models, prepared, seeds, stop):

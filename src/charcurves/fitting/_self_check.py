@@ -263,33 +263,43 @@ def _features(curve, z: np.ndarray) -> np.ndarray | None:
 def _equation_parts(model, record, mask):
     """Per equation: its residual, its input and the arguments of the curves that enter it (masked).
 
-    The residual is taken orthogonal to what the representations could still change: the columns of
-    the curves linear in their parameters (times their coefficients in the equation), a constant and,
-    with a free gain, the input. An equation-error fit by least squares leaves such a residual
+    The residual is taken orthogonal to what the representations could still change
+    (:func:`equation_columns`). An equation-error fit by least squares leaves such a residual
     already; a fit by output error leaves in it the (small, but on thousands of samples visible)
     change of coefficients that output error makes, which is no misfit of the curves' shape."""
     r = np.asarray(model.force_residual(record), dtype=float)
     r = r.reshape(r.shape[0], -1)
     keep = np.asarray(mask, bool) if mask is not None and len(mask) == r.shape[0] else np.ones(r.shape[0], bool)
-    template = model.template
-    D = template.design(record)
-    n, E = D["n"], D["E"]
-    args = D["args"]
+    D = model.template.design(record)
     parts = []
-    for e in range(E):
-        rows = slice(e * n, (e + 1) * n)
-        curves = {c: np.asarray(z, dtype=float)[keep] for c, z in args.items()
-                  if np.any(np.asarray(D["mult"][c], dtype=float)[rows] != 0)}
-        F = np.asarray(D["F"], dtype=float)[rows][keep]
-        cols = [np.ones(int(keep.sum()))] + ([F] if getattr(template, "free_gain", False) else [])
-        for c, z in curves.items():
-            phi = _features(model.curves[c], z)
-            if phi is not None:
-                cols.extend((phi * np.asarray(D["mult"][c], dtype=float)[rows][keep][:, None]).T)
+    for e in range(D["E"]):
+        cols, F, curves = equation_columns(model, D, keep, e)
         X = np.column_stack(cols)
         re = r[keep, e] - X @ np.linalg.lstsq(X, r[keep, e], rcond=None)[0]
         parts.append((re, F, curves))
     return parts
+
+
+def equation_columns(model, D: dict, keep: np.ndarray, e: int, *, used_only: bool = False):
+    """``(columns, input, arguments)`` of equation ``e`` of the design ``D`` (masked by ``keep``): a
+    constant, with a free gain the input, and the columns of the curves linear in their parameters
+    (times their coefficients in the equation), what the representations could still change;
+    ``used_only``: only the terms a sparse fit kept (nonzero coefficients)."""
+    n = D["n"]
+    rows = slice(e * n, (e + 1) * n)
+    mults = {c: np.asarray(D["mult"][c], dtype=float)[rows] for c in D["args"]}
+    curves = {c: np.asarray(z, dtype=float)[keep] for c, z in D["args"].items() if np.any(mults[c] != 0)}
+    F = np.asarray(D["F"], dtype=float)[rows][keep]
+    cols = [np.ones(int(keep.sum()))] + ([F] if getattr(model.template, "free_gain", False) else [])
+    for c, z in curves.items():
+        phi = _features(model.curves[c], z)
+        if phi is None:
+            continue
+        if used_only:
+            used = np.asarray(getattr(model.curves[c], "coefficients", np.ones(phi.shape[1])), dtype=float) != 0
+            phi = phi[:, used] if used.size == phi.shape[1] else phi
+        cols.extend((phi * mults[c][keep][:, None]).T)
+    return cols, F, curves
 
 
 def _prior(model, curve: str) -> str | None:
