@@ -1,4 +1,4 @@
-"""Write the headline tables of docs/benchmark.md, measured-records.md, training-defaults.md, silverbox.md, differentiators.md, choosing.md, uncertainty-zoo.md, selection.md and several-records.md from the committed results in benchmarks/results/.
+"""Write the headline tables of docs/benchmark.md, measured-records.md, training-defaults.md, silverbox.md, differentiators.md, choosing.md, uncertainty-zoo.md, selection.md, several-records.md and zoo.md from the committed results in benchmarks/results/.
 
 Usage: ``python benchmarks/render_docs.py`` rewrites every ``<!-- table:NAME -->`` ... ``<!-- /table -->``
 block of the page from the results (run it after committing a rerun); ``--check`` writes nothing and exits 1
@@ -12,7 +12,7 @@ from charcurves.experiments import docs_tables, fill_table_markers
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "docs" / name for name in ("benchmark.md", "measured-records.md", "training-defaults.md", "silverbox.md",
                                                 "differentiators.md", "choosing.md", "uncertainty-zoo.md",
-                                                "selection.md", "several-records.md")]
+                                                "selection.md", "several-records.md", "zoo.md")]
 
 
 def main(argv):

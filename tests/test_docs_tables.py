@@ -33,7 +33,8 @@ PAGES = {"benchmark.md": {"full-duffing", "full-stick-slip", "scripts-duffing", 
                                 "differentiators-fits", "differentiators-references"},
          "uncertainty-zoo.md": {"zoo-coverage-term", "zoo-coverage-plain", "zoo-coverage-text"},
          "selection.md": {"parity-zoo"},
-         "several-records.md": {"records-joint", "records-outside"}}
+         "several-records.md": {"records-joint", "records-outside"},
+         "zoo.md": {"units-linear"}}
 
 
 @pytest.fixture(scope="module")

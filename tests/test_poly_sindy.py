@@ -219,6 +219,8 @@ def test_sindy_errors(duffing, monkeypatch):
         cc.CharacteristicCurves(cc.Separable(SparseLibrary(optimizer="stlsq"), SparseLibrary(optimizer="stlsq"))
                                 ).fit(clean)
     with pytest.raises(ConfigError, match="unknown SINDy option"):
+        cc.fit(clean, method="sindy", options={"expand_tol": 1e-9})
+    with pytest.raises(ConfigError, match="unknown SparseLibrary rescaling 'scripts'; choose one of max-abs, none"):
         cc.fit(clean, method="sindy", options={"rescaling": "scripts"})
     with pytest.raises(ConfigError, match="threshold"):
         cc.fit(clean, method="sindy", options={"threshold": -1})

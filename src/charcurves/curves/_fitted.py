@@ -328,6 +328,10 @@ class BasisFittedCurve(FittedCurve):
     def pinned_at_zero(self) -> bool:
         return self._pinned
 
+    def monomial_powers(self) -> tuple[int, ...] | None:
+        """The power of ``z`` of each basis function where all are plain monomials (``1``, ``z``, ``z**k``), else None."""
+        return self._powers
+
     def raw(self, z):
         z = np.asarray(z, dtype=float)
         out = np.zeros_like(z)

@@ -7,6 +7,13 @@ curve from new parameters. For closed forms (post-SR, SR-CC) every numeric coeff
 parameter: one per additive term (also an implicit 1 or an integer, as in ``z**3 - z``) and every
 Float inside a term (``tanh(50.0*z)``); the additive constant (it trades with the equation's free
 constant) and exponents stay fixed.
+
+A curve on plain monomials (``z``, ``z**3``: a polynomial in powers of its argument, a polynomial
+basis) is trained in the powers of ``z / h``, ``h`` the largest ``|z|`` of its domain, so that the
+fit does not depend on the units of its argument: in raw powers a record in millimetres has
+coefficients 1e30 apart, which the damping floor of Levenberg-Marquardt and the evidence's one
+weight decay per curve treat as directions the data do not see. ``CurveRefit.unscale`` gives the
+factors from the trained parameters back to the curve's own coefficients.
 """
 
 from __future__ import annotations
@@ -42,6 +49,7 @@ class CurveRefit:
     shift: float
     rebuild: Callable  # theta (members, n_params) -> FittedCurve (same name, argument, domain, shift)
     labels: list
+    unscale: np.ndarray | None = None  # per parameter: the curve's own coefficient over the trained one
 
 
 def trainable(curve) -> CurveRefit:
@@ -52,10 +60,10 @@ def trainable(curve) -> CurveRefit:
     >>> import numpy as np
     >>> from charcurves.curves import BasisFittedCurve, trainable
     >>> refit = trainable(BasisFittedCurve("f2", "x", (-2.0, 2.0), ["z", "z**3"], [-1.0, 1.0]))
-    >>> refit.theta.tolist(), refit.labels
-    ([[-1.0, 1.0]], ['f2:z', 'f2:z**3'])
-    >>> float(refit.rebuild(np.array([[-1.0, 2.0]]))(1.0))
-    1.0
+    >>> refit.half_width, refit.out_scale, refit.labels  # powers of z / 2, in units of max |f| = 6
+    (2.0, 6.0, ['f2:z', 'f2:z**3'])
+    >>> (refit.theta * 6).tolist(), refit.rebuild(refit.theta).coefficients.tolist()
+    ([[-2.0, 8.0]], [-1.0, 1.0])
     """
     from ._base import LinearParametrisation
     from ._fitted import BasisFittedCurve, LinearFittedCurve, NeuralFittedCurve, SymbolicFittedCurve
@@ -71,13 +79,25 @@ def trainable(curve) -> CurveRefit:
                           curve.out_scale, curve.shift, rebuild, labels)
     if isinstance(curve, BasisFittedCurve):
         param = LinearParametrisation(Basis(list(curve.basis)))
+        powers = curve.monomial_powers()
+        h = max(abs(float(curve.domain[0])), abs(float(curve.domain[1])))
+        h = h if powers is not None and np.isfinite(h) and h > 0 else 1.0
+        # coefficient of z**k = (trained coefficient of (z/h)**k) / h**k (1 for a basis that is not monomials)
+        unscale = np.array([h ** -float(k) for k in powers], dtype=float) if powers is not None else \
+            np.ones(len(curve.basis))
+
+        # and in units of the curve's largest value on its domain, so that the parameters are numbers of order one
+        with np.errstate(all="ignore"):
+            out = float(np.max(np.abs(curve.raw(np.linspace(curve.domain[0], curve.domain[1], 201)))))
+        out = out if np.isfinite(out) and out > 0 else 1.0
+        unscale = unscale * out
 
         def rebuild(theta):
             return BasisFittedCurve(curve.name, curve.argument, curve.domain, curve.basis,
-                                    np.asarray(theta, dtype=float).mean(axis=0), curve.shift)
+                                    np.asarray(theta, dtype=float).mean(axis=0) * unscale, curve.shift)
 
-        return CurveRefit(param, curve.coefficients[None, :].copy(), 0.0, 1.0, 1.0, curve.shift, rebuild,
-                          [f"{curve.name}:{b}" for b in curve.basis])
+        return CurveRefit(param, (curve.coefficients / unscale)[None, :], 0.0, h, out, curve.shift, rebuild,
+                          [f"{curve.name}:{b}" for b in curve.basis], unscale)
     if isinstance(curve, LinearFittedCurve):
         param = LinearParametrisation(curve.representation)
 

@@ -139,6 +139,8 @@ class Neural(AbstractCurve):
 
 #: Sparse-regression optimizers of pysindy that SparseLibrary curves use.
 SPARSE_OPTIMIZERS = ("constrained-sr3", "stlsq", "sr3")
+#: SparseLibrary's maps: "max-abs" (z / max|z| and the target over its RMS: unit-free), "none" (the scripts' raw powers).
+SPARSE_RESCALINGS = ("max-abs", "none")
 
 
 class SparseLibrary(LinearCurve):
@@ -157,6 +159,11 @@ class SparseLibrary(LinearCurve):
         STLSQ threshold (default 1e-4).
     alpha, nu, tol, max_iter
         STLSQ ridge, SR3 relaxation, tolerance and iterations.
+    rescaling : {"max-abs", "none"}
+        ``"max-abs"`` (default): the library is built on ``z / max|z|`` and the regression is scaled by
+        the RMS of its target, so that the threshold, ``nu`` and ``tol`` are relative and the fit does
+        not depend on the units of the record; ``"none"``: raw powers of ``z`` and the raw target, as
+        in the paper's scripts (the threshold in the record's units).
 
     Notes
     -----
@@ -173,8 +180,9 @@ class SparseLibrary(LinearCurve):
 
     def __init__(self, degree: int = 10, symmetry: str | None = None, optimizer: str | None = None,
                  threshold: float | None = None, alpha: float = 0.05, nu: float = 1.0, tol: float = 1e-5,
-                 max_iter: int = 10000):
+                 max_iter: int = 10000, rescaling: str = "max-abs"):
         self.degree = degree
+        self.rescaling = rescaling
         self.symmetry = symmetry
         self.optimizer = optimizer
         self.threshold = threshold
@@ -185,6 +193,9 @@ class SparseLibrary(LinearCurve):
 
     def check(self) -> None:
         normalise_symmetry(self.symmetry, "SparseLibrary")
+        if self.rescaling not in SPARSE_RESCALINGS:
+            raise ConfigError(f"unknown SparseLibrary rescaling {self.rescaling!r}; choose one of "
+                              f"{', '.join(SPARSE_RESCALINGS)}")
         if self.optimizer is not None and self.optimizer not in SPARSE_OPTIMIZERS:
             raise ConfigError(f"unknown SparseLibrary optimizer {self.optimizer!r}; choose one of "
                               f"{', '.join(SPARSE_OPTIMIZERS)}")
@@ -217,7 +228,10 @@ class SparseLibrary(LinearCurve):
         return 1e-4 if self.resolved_optimizer(free_gain) == "stlsq" else 1e-5
 
     def scaling(self, z, preset=None):
-        return 0.0, 1.0  # pysindy sees the raw powers, as in the paper's scripts
+        if self.rescaling == "none":
+            return 0.0, 1.0  # pysindy sees the raw powers, as in the paper's scripts
+        h = float(np.max(np.abs(np.asarray(z, dtype=float)))) if np.size(z) else 0.0
+        return 0.0, (h if np.isfinite(h) and h > 0 else 1.0)  # a pure scaling keeps parity and f(0) = 0
 
     def monomial_powers(self) -> tuple[int, ...]:
         return tuple(self.powers())
@@ -243,7 +257,7 @@ class SparseLibrary(LinearCurve):
         from ._fitted import BasisFittedCurve
 
         coef = np.asarray(theta, dtype=float).mean(axis=0) * out_scale
-        terms = {k: float(c) for k, c in zip(self.powers(), coef)}
+        terms = {k: float(c) / float(half_width) ** k for k, c in zip(self.powers(), coef)}  # powers of z / h -> of z
         if constant:
             terms[0] = float(constant)
         active = sorted(k for k, c in terms.items() if c != 0.0)

@@ -12,7 +12,7 @@ build_report(out_dir)                      rebuild the report from results.csv, 
 docs_tables(results_root)                  the docs' headline tables from the committed results folders
 fill_table_markers(text, tables)           write them between a page's <!-- table:NAME --> markers
 zoo_coverage_tables(results_root)          docs/uncertainty-zoo.md's coverage tables; gated_rows, coverage_table, per_curve_table
-selection_tables(results_root)             the parity test on the zoo, Duffing from three records; parity_table
+selection_tables(results_root)             the parity test on the zoo, Duffing from three records, units; parity_table, units_table
 ray_ensemble_fitter(address)               select_family's ensemble fits as Ray tasks on a cluster
 run_real_benchmark(name, out_dir, ...)     a real benchmark (charcurves.datasets): fit, test RMSE after the window
 
@@ -35,6 +35,7 @@ from ._real import run_real_benchmark as run_real_benchmark
 from ._docs_tables import fill_table_markers as fill_table_markers
 from ._selection_tables import parity_table as parity_table
 from ._selection_tables import selection_tables as selection_tables
+from ._selection_tables import units_table as units_table
 from ._zoo_coverage_tables import coverage_table as coverage_table
 from ._zoo_coverage_tables import gated_rows as gated_rows
 from ._zoo_coverage_tables import per_curve_table as per_curve_table
@@ -101,6 +102,7 @@ __all__ = [
     "fill_table_markers",
     "zoo_coverage_tables",
     "selection_tables",
+    "units_table",
     "parity_table",
     "gated_rows",
     "coverage_table",

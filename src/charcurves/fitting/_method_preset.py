@@ -20,7 +20,7 @@ __all__ = ["MethodPreset"]
 
 #: options that only shape the curves a method builds (ignored when a template sets every curve)
 _CURVE_OPTIONS = {"poly": ("degree", "rescaling", "basis", "expand_tol"),
-                  "sindy": ("threshold", "degree", "max_iter", "alpha", "nu", "tol")}
+                  "sindy": ("threshold", "degree", "max_iter", "alpha", "nu", "tol", "rescaling")}
 #: settings of the template a preset builds from a family (a template object carries its own)
 _TEMPLATE_SETTINGS = ("family", "equation", "free_gain", "gain", "gauge", "gain_on")
 

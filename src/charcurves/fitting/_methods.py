@@ -50,7 +50,7 @@ DEFAULT_BASIS = {"f1": ["z"], "f2": ["z", "z**3"]}
 DEFAULT_GENERAL_BASIS = ["1", "z", "z**2", "z**3"]
 
 POLY_OPTIONS = ("degree", "rescaling", "basis", "expand_tol", "constant", "exclude_sticking", "stick_tol")
-SINDY_OPTIONS = ("threshold", "degree", "max_iter", "alpha", "nu", "tol", "exclude_sticking", "stick_tol")
+SINDY_OPTIONS = ("threshold", "degree", "max_iter", "alpha", "nu", "tol", "rescaling", "exclude_sticking", "stick_tol")
 _SR_OPTIONS = ("stick_tol",)
 _SRCC_OPTIONS = ("stick_tol", "outer_iterations", "inner_generations", "tol")
 
@@ -183,7 +183,7 @@ def method_curve(method: str, name: str, *, symmetry: str, jump, options: dict, 
         curve.check()
         return curve
     if rep == "sindy":
-        kw = {k: options[k] for k in ("threshold", "degree", "max_iter", "alpha", "nu", "tol") if k in options}
+        kw = {k: options[k] for k in ("threshold", "degree", "max_iter", "alpha", "nu", "tol", "rescaling") if k in options}
         curve = SparseLibrary(symmetry=sym if spec["symmetry"] else None,
                               optimizer="stlsq" if spec.get("free_gain") else "constrained-sr3", **kw)
         curve.check()

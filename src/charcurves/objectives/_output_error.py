@@ -284,6 +284,11 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
     if template.free_gain and offsets:  # the older report's order: ..., g, b
         order = order[:-1 - len(offsets)] + [int(problem.gain_index or 0)] + order[-1 - len(offsets):-1]
         labels = labels[:-1 - len(offsets)] + ["g"] + labels[-1 - len(offsets):-1]
+    raw = np.ones(problem.n_shared)  # the curves' own coefficients from the trained ones (monomials of z / h)
+    for i, name in enumerate(template.curve_names):
+        if refits[name].unscale is not None:
+            o = problem.block_offsets[i]
+            raw[o:o + blocks[i].n_params] = refits[name].unscale
     seg_before = float(np.sqrt(np.mean((X0.double().numpy() - meas[None]) ** 2)))
     seg_after = float(np.sqrt(np.mean((X1.double().numpy()[members] - meas[None]) ** 2)))
     info = dict(model.info)
@@ -302,8 +307,8 @@ def output_error_fit(model, prepared, measured, settings: Any, *, preset, progre
         f"data loss within {preset.combine_tol:g} of the best",
         "output": "measured positions" if meas_cols is not None else "smoothed positions (no raw columns)",
         "parameters": labels,
-        "coefficients_before": theta0.double().numpy()[:, order].mean(axis=0).tolist(),
-        "coefficients_after": rows[:, order].mean(axis=0).tolist(),
+        "coefficients_before": (theta0.double().numpy()[:, :problem.n_shared] * raw)[:, order].mean(axis=0).tolist(),
+        "coefficients_after": (rows[:, :problem.n_shared] * raw)[:, order].mean(axis=0).tolist(),
     })
     if log.interrupted:
         info["interrupted"] = True

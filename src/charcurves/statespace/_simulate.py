@@ -114,6 +114,8 @@ class _Simulated:
         if not isinstance(curve, LinearFittedCurve):  # a network or a closed form (one member, out_scale 1)
             refit = trainable(curve)
             self._param, self.theta = refit.param, np.repeat(refit.theta[:1], B, axis=0)
+            if isinstance(refit.param, LinearParametrisation):  # a basis trains in units of its largest value
+                self.theta = self.theta * refit.out_scale
             self.center, self.half = np.full(B, refit.center), np.full(B, refit.half_width)
             self.shift = np.full(B, refit.shift)
             return

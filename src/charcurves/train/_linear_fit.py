@@ -316,6 +316,12 @@ def _sparse_fit(template, reps, sparse, D, cols, owners, rows, info, method):
     ps = import_pysindy(optimizer == "constrained-sr3")
     X = np.column_stack([-c for c in cols] + [D["F"]])[rows]
     target = D["y"][rows]
+    # the library's own map (z / max|z|, SparseLibrary.scaling) and the target over its RMS: the coefficients
+    # the threshold, nu and tol see are numbers relative to the target, whatever the record's units
+    s = float(np.sqrt(np.mean(target**2))) if getattr(first, "rescaling", "none") != "none" else 1.0
+    s = s if np.isfinite(s) and s > 0 else 1.0
+    X[:, -1] = X[:, -1] / s
+    target = target / s
     n_feat = X.shape[1]
     if optimizer == "constrained-sr3":
         lam = l0_weight(threshold, first.nu)
@@ -340,6 +346,7 @@ def _sparse_fit(template, reps, sparse, D, cols, owners, rows, info, method):
         warnings.simplefilter("always")
         opt.fit(X, target.reshape(-1, 1))
     coef = np.asarray(opt.coef_, dtype=float).reshape(-1)
+    coef[:-1] = coef[:-1] * s  # back to the target's units (the input's coefficient is the gain either way)
     k_u = float(coef[-1])
     if optimizer == "sr3" or optimizer == "constrained-sr3":
         gain = float(template.gain)
