@@ -88,7 +88,7 @@ def _bootstrap(est, record, model, truth, n):
     return float(np.mean(list(cov.values()))), float(width), seconds
 
 
-def run(realisations: int, bootstrap: int, bootstrap_records: int, methods, settings):
+def run(realisations: int, bootstrap: int, bootstrap_records: int, methods, settings, first: int = 0):
     import charcurves as cc
     from charcurves.fitting import posterior_bands
     from charcurves.systems import get_system
@@ -105,11 +105,11 @@ def run(realisations: int, bootstrap: int, bootstrap_records: int, methods, sett
                 est = cc.CharacteristicCurves.from_method(method=method, objective=OBJECTIVE[setting], threads=1,
                                                           **{"free_gain": True, **METHODS[method]})
                 t0 = time.perf_counter()
-                fitted = est.fit_many([cc.corrupt(clean, snr, on=on, seed=r) for r in range(realisations)],
-                                      seeds=list(range(realisations)))
+                seeds = list(range(first, first + realisations))
+                fitted = est.fit_many([cc.corrupt(clean, snr, on=on, seed=r) for r in seeds], seeds=seeds)
                 per = (time.perf_counter() - t0) / realisations
-                batch = {r: m for r, m in enumerate(fitted)}
-            for r in range(realisations):
+                batch = dict(zip(seeds, fitted))
+            for r in range(first, first + realisations):
                 record = cc.corrupt(clean, snr, on=on, seed=r)
                 est = cc.CharacteristicCurves.from_method(method=method, objective=OBJECTIVE[setting], random_state=r, threads=1,
                                               **{"free_gain": True, **METHODS[method]})
@@ -224,6 +224,8 @@ def main(argv=None):
     ap.add_argument("--render", action="store_true",
                     help="only rewrite the table of docs/uncertainty-coverage.md from the committed coverage.json")
     ap.add_argument("--realisations", type=int, default=100)
+    ap.add_argument("--first", type=int, default=0,
+                    help="the first noise seed (a chunk of seeds first..first+realisations-1, to merge afterwards)")
     ap.add_argument("--bootstrap", type=int, default=20, help="refits per bootstrap band (0: none)")
     ap.add_argument("--bootstrap-records", type=int, default=20)
     ap.add_argument("--methods", default=",".join(METHODS))
@@ -235,7 +237,7 @@ def main(argv=None):
     if a.render:
         render(a.out)
         return
-    rows = run(a.realisations, a.bootstrap, a.bootstrap_records, a.methods.split(","), a.settings.split(","))
+    rows = run(a.realisations, a.bootstrap, a.bootstrap_records, a.methods.split(","), a.settings.split(","), a.first)
     os.makedirs(a.out, exist_ok=True)
     if a.merge and os.path.exists(os.path.join(a.out, "coverage.json")):
         with open(os.path.join(a.out, "coverage.json"), encoding="utf-8") as fh:

@@ -334,3 +334,23 @@ def test_symbolic_curves_get_one_coefficient_per_term():
         assert np.allclose(values, model.curves[name](z.numpy()), rtol=1e-13)
     assert float(f2.rebuild(f2.theta * 1.1)(0.0)) == pytest.approx(0.5)  # the constant is not scaled
     assert float(f1.rebuild(f1.theta * 1.1)(0.1)) == pytest.approx(0.33 * 0.1 + 2.2 * np.tanh(5.5), rel=1e-12)
+
+
+@pytest.mark.parametrize("hold", ["linear", "bandlimited"])
+def test_the_linear_hold_biases_the_free_gain_by_the_interpolants_amplitude(hold):
+    """A free gain fitted by output error on a nearly clean Duffing record (forcing A cos(W t)) takes up
+    what the input's hold does between samples: the linear interpolant of a sampled sinusoid has a
+    fundamental smaller by sinc(W dt / 2)^2, so the gain is high by 1 / sinc^2 - 1 (benchmarks/results/
+    coverage/hold_bias.json); the bandlimited hold reproduces the sinusoid and leaves no bias."""
+    from charcurves.systems import get_system
+
+    system = get_system("duffing")
+    record = cc.corrupt(system.simulate(t_end=20.0, n_points=500), 120, on="state", seed=0)
+    dt = float(record.t[1] - record.t[0])
+    est = cc.CharacteristicCurves.from_method(method="parametric", basis="f1=z; f2=z, z**3", free_gain=True,
+                                              objective=cc.OutputError(hold=hold), threads=1)
+    model = est.fit(record).model_
+    assert model.info["output_error"]["status"] == "ok"
+    predicted = 1.0 / np.sinc(system.Omega * dt / (2 * np.pi)) ** 2 - 1.0  # 1.93e-4 here
+    expected = predicted if hold == "linear" else 0.0
+    assert model.gain - 1.0 == pytest.approx(expected, abs=0.03 * predicted)
