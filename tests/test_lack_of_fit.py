@@ -196,6 +196,11 @@ def test_a_well_specified_sparse_fit_is_widened_little():
                                                 objective="equation-error").fit(record).model_
     post = model.posterior
     inner = post.inner if isinstance(post, LackOfFitPosterior) else post
+    from types import SimpleNamespace
+
+    from charcurves.fitting import sparse_fit
+
+    assert sparse_fit(model) and not sparse_fit(SimpleNamespace(info={**model.info, "post_sr": {}}))  # distilled
     for name in ("f1", "f2"):
         z = np.linspace(*model.curves[name].domain, 200)
         ratio = post.curve_sd(name, z)[1] / np.maximum(inner.curve_sd(name, z)[1], 1e-300)
