@@ -20,7 +20,7 @@ import numpy as np
 SETTINGS = {"force": (20.0, "force", "equation-error"), "state": (40.0, "state", "equation-error"),
             "state-oe": (40.0, "state", "output-error")}
 EXTRA = {"poly-cc": {}, "parametric": {"basis": "f1=z; f2=z, z**3"}, "sindy-cc": {"free_gain": False},
-         "nn-cc": {}, "nn-cc+sym": {}}
+         "sindy-cc+sym": {"free_gain": False}, "nn-cc": {}, "nn-cc+sym": {}}
 
 
 def main(argv=None) -> int:

@@ -13,6 +13,10 @@ as they end; a rerun skips the jobs already there.
 
 ``--previous`` also scores, on the same fits, the band of the lack-of-fit estimate before issue 48's
 level fix (``benchmarks/_lof_previous.py``): ``inside_prev``, ``half_width_prev``, ``binned_p_prev``.
+``--before`` scores the band of the rule before issue 48's sparse rule (the term only where the test
+rejects at ``LACK_OF_FIT_LEVEL``, ``LACK_OF_FIT_BINS`` bins, no shrinkage, for every method):
+``inside_before``, ``half_width_before``. Rows of sparse fits (``charcurves.fitting.sparse_fit``) say
+``lof_every_curve``: their default band has the term on every curve, whatever the test's p.
 
 Run: ``python benchmarks/bench_zoo_coverage.py --seeds 0-9 [--report-only] [--markdown FILE]``.
 """
@@ -80,6 +84,13 @@ def run_job(job, clean_cache) -> dict:
     row["inside"], row["half_width"], row["inside_plain"], row["half_width_plain"] = {}, {}, {}, {}
     row["error_over_half_width"] = {}
     prev = model.info.pop("_lack_of_fit_previous", None)  # --previous: the old estimate on the same fit
+    before = model.info.pop("_lack_of_fit_before", None)  # --before: the rule before the sparse rule, same fit
+    if cc.fitting.sparse_fit(model):
+        row["lof_every_curve"] = True
+        row["n_active_terms"] = model.info.get("n_active_terms")
+        row["library_size"] = model.info.get("library_size")
+    if before is not None:
+        row["inside_before"], row["half_width_before"] = {}, {}
     if prev is not None:
         row["binned_p_prev"] = {c: p for c, (_, _, p) in prev.items()}
         row["inside_prev"], row["half_width_prev"] = {}, {}
@@ -107,9 +118,40 @@ def run_job(job, clean_cache) -> dict:
             pv, psd = cc.model.LackOfFitPosterior(plain, {c: (zc, b) for c, (zc, b, _) in prev.items()}).curve_sd(slot, z)
             row["inside_prev"][slot] = float(np.mean(np.abs(f - pv) <= zq * psd))
             row["half_width_prev"][slot] = float(np.mean(zq * psd) / np.std(f))
+        if before is not None:
+            bv, bsd = (cc.model.LackOfFitPosterior(plain, before).curve_sd(slot, z) if before
+                       else plain.curve_sd(slot, z))
+            row["inside_before"][slot] = float(np.mean(np.abs(f - bv) <= zq * bsd))
+            row["half_width_before"][slot] = float(np.mean(zq * bsd) / np.std(f))
         ok = hw > 0
         row["error_over_half_width"][slot] = float(np.mean(np.abs(f - value)[ok] / hw[ok])) if np.any(ok) else 0.0
     return row
+
+
+def record_before() -> None:
+    """Make every fit also keep the lack-of-fit term of the rule before issue 48's sparse rule (on the same
+    prepared record and mask): ``info["_lack_of_fit_before"]``, ``{curve: (centres, bias)}`` of the curves
+    whose test rejects at ``LACK_OF_FIT_LEVEL`` (20 bins, no shrinkage; what every method had)."""
+    import charcurves.fitting._lack_of_fit as lof
+
+    new = lof.apply_lack_of_fit
+
+    def both(model, record, mask=None, **kw):
+        out = new(model, record, mask, **kw)
+        if getattr(model, "posterior", None) is not None and model.info.get("objective") != "output-error":
+            est = lof.lack_of_fit_bias(model, record, mask, bins=lof.LACK_OF_FIT_BINS)
+            model.info["_lack_of_fit_before"] = {c: (zc, b) for c, (zc, b, p) in est.items()
+                                                 if p < lof.LACK_OF_FIT_LEVEL}
+        return out
+
+    lof.apply_lack_of_fit = both
+
+
+def before_rows(rows: list[dict]) -> list[dict]:
+    """The rows with the band of the rule before the sparse rule in ``inside`` (``--before``); others dropped."""
+    # lof_every_curve: the band is the rule's as recorded, not to be gated again (gated_rows)
+    return [{**r, "inside": r["inside_before"], "half_width": r["half_width_before"], "lof_every_curve": True}
+            for r in rows if "inside_before" in r]
 
 
 def previous_rows(rows: list[dict]) -> list[dict]:
@@ -118,7 +160,7 @@ def previous_rows(rows: list[dict]) -> list[dict]:
     for r in rows:
         if "inside_prev" in r:
             out.append({**r, "inside": r["inside_prev"], "half_width": r["half_width_prev"],
-                        "binned_p": r["binned_p_prev"]})
+                        "binned_p": r["binned_p_prev"], "lof_every_curve": False})  # gated at the old level
     return out
 
 
@@ -152,6 +194,8 @@ def main(argv=None) -> int:
                         "LACK_OF_FIT_LEVEL; exact for rows run at that level or a laxer one)")
     p.add_argument("--previous", action="store_true",
                    help="also score the lack-of-fit estimate before issue 48's level fix on the same fits")
+    p.add_argument("--before", action="store_true",
+                   help="also score the band of the rule before issue 48's sparse rule on the same fits")
     a = p.parse_args(argv)
     if a.lof_level is not None or a.lof_bins is not None:  # tuning runs (the tuning half only)
         import charcurves.fitting._lack_of_fit as lof
@@ -170,6 +214,8 @@ def main(argv=None) -> int:
             from _lof_previous import record_previous
 
             record_previous()
+        if a.before:
+            record_before()
         os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
         done = {r["key"] for r in load_rows(out)}
         cache: dict = {}
@@ -193,8 +239,15 @@ def main(argv=None) -> int:
     if prev:
         print("\nThe previous lack-of-fit estimate (before issue 48's level fix) on the same fits:\n")
         print(table(prev, methods))
+    before = before_rows(load_rows(out))
+    if before:
+        print("\nThe rule before issue 48's sparse rule (the term where the test rejects) on the same fits:\n")
+        print(table(before, methods))
     if a.per_curve:
         print(per_curve(rows))
+        if before:
+            print("\nPer curve, the rule before the sparse rule:\n")
+            print(per_curve(before))
         if prev:
             print("\nPer curve, the previous estimate:\n")
             print(per_curve(prev))

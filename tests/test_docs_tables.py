@@ -166,12 +166,16 @@ def test_the_sentences_under_the_measured_records_tables_are_computed_from_the_r
 
 
 def test_the_zoo_coverage_tables_show_the_committed_values(tables):
-    # benchmarks/results/zoo-coverage/tables-level-fix.md, which bench_zoo_coverage.py --report-only printed
+    # benchmarks/results/zoo-coverage/tables-level-fix.md and tables-sparse.md, which bench_zoo_coverage.py
+    # --report-only printed
     term, plain = tables["zoo-coverage-term"].splitlines(), tables["zoo-coverage-plain"].splitlines()
     assert term[2] == "| F25 | poly-cc | 0.934 | 0.78 | 0.0433 | 160 | 10 | 0 |"
     assert "| F25 | nn-cc | 0.911 | 0.72 | 0.0299 | 64 | 4 | 0 |" in term
     assert plain[4] == "| F25 | parametric | 0.948 | 0.88 | 0.00486 | 160 | 10 | 0 |"
     text = tables["zoo-coverage-text"]
     assert "(0.948 plain, 0.948 with the term" in text and "(sindy-cc+sym, 0.85)" in text
-    assert "poly-cc from 0.920 to 0.941" in text and "sindy-cc+sym at 0.87 (target" in text
+    assert "poly-cc from 0.920 to 0.941" in text and "target 0.90" not in text  # nothing short with noise on F
+    # sindy-cc+sym: the rows of results-sparse.jsonl (tables-sparse.md), the sparse fit's rule (issue 48)
+    assert term[3] == "| F25 | sindy-cc+sym | 0.923 | 0.68 | 0.0387 | 80 | 10 | 0 |"
+    assert "takes it from 0.874 (the term only where the test rejects) to 0.923 of the grid" in text
     assert "poly-cc 0.862 (mean half-width / sd 0.078, now 0.093)" in text  # the estimate before the level fix

@@ -1,6 +1,8 @@
 """The tables and figures of docs/uncertainty-zoo.md, rendered from the committed
-``benchmarks/results/zoo-coverage/results-level-fix.jsonl`` (``benchmarks/bench_zoo_coverage.py``) and
-``duffing-level-fix.txt`` (``benchmarks/bench_lack_of_fit_duffing.py``), so that a rerun updates the page
+``benchmarks/results/zoo-coverage/results-level-fix.jsonl`` (``benchmarks/bench_zoo_coverage.py``), whose
+sindy-cc+sym rows ``results-sparse.jsonl`` replaces (the sparse fit's rule, issue 48), and
+``duffing-level-fix.txt`` (``benchmarks/bench_lack_of_fit_duffing.py``; its sindy-cc rows replaced by those of
+``duffing-sparse.txt``), so that a rerun updates the page
 (``python benchmarks/render_docs.py``). :func:`zoo_coverage_tables` is merged into
 :func:`charcurves.experiments.docs_tables`; the benchmark prints the same tables (``--report-only``).
 """
@@ -19,7 +21,11 @@ ZOO_SETTINGS = ("F25", "x30")
 ZOO_METHODS = ("poly-cc", "sindy-cc+sym", "parametric")
 _ALL_METHODS = ("poly-cc", "sindy-cc+sym", "parametric", "nn-cc", "nn-cc+sym")
 _RESULTS = os.path.join("zoo-coverage", "results-level-fix.jsonl")
+#: rows that replace those of :data:`_RESULTS` for their methods (sindy-cc+sym under the sparse fit's rule)
+_SPARSE = os.path.join("zoo-coverage", "results-sparse.jsonl")
 _DUFFING = os.path.join("zoo-coverage", "duffing-level-fix.txt")
+#: rows that replace those of :data:`_DUFFING` for their setting and method (sindy-cc under the sparse fit's rule)
+_DUFFING_SPARSE = os.path.join("zoo-coverage", "duffing-sparse.txt")
 
 
 def _jsonl(path: str) -> list[dict]:
@@ -30,7 +36,8 @@ def _jsonl(path: str) -> list[dict]:
 def gated_rows(rows: list[dict], level: float) -> list[dict]:
     """The rows with the lack-of-fit band ("inside") only for curves whose binned test's p-value is
     below ``level``, the plain band otherwise: exact for rows recorded at ``level`` or a laxer
-    ``--lof-level``.
+    ``--lof-level``. Rows of a sparse regression's fit (``lof_every_curve``: the term on every curve,
+    :data:`charcurves.fitting.SPARSE_LACK_OF_FIT`) are kept as they are.
 
     Examples
     --------
@@ -42,7 +49,7 @@ def gated_rows(rows: list[dict], level: float) -> list[dict]:
     """
     out = []
     for r in rows:
-        if "inside_plain" not in r or "binned_p" not in r:
+        if "inside_plain" not in r or "binned_p" not in r or r.get("lof_every_curve"):
             out.append(r)
             continue
         r = dict(r)
@@ -136,7 +143,7 @@ def _text(rows: list[dict], default: list[dict], duffing: list[dict]) -> str:
     lowest = helped[0]
     cosine = curves.get(("F25", "nn-cc+sym", "fo-sinh-cos", "f2"))
     by = {(d["setting"], d["method"]): d for d in duffing}
-    force = [by[("force", m)] for m in ("parametric", "poly-cc", "sindy-cc") if ("force", m) in by]
+    force = [by[("force", m)] for m in ("parametric", "poly-cc", "sindy-cc", "sindy-cc+sym") if ("force", m) in by]
     text = (f"- **F25:** the limit's bands are calibrated ({_mean(rows, 'F25', 'parametric', 'inside_plain'):.3f} "
             f"plain, {_mean(default, 'F25', 'parametric', 'inside'):.3f} with the term, which rarely applies).\n"
             f"  poly-cc and sindy-cc+sym are short because of bias, not spread: without the term the mean |error| /\n"
@@ -156,11 +163,11 @@ def _text(rows: list[dict], default: list[dict], duffing: list[dict]) -> str:
              f"  catches only part of it ({x30}).\n")
     if force:
         realisations = force[0]["realisations"]
-        state = {m: by[("state", m)] for m in ("poly-cc", "sindy-cc") if ("state", m) in by}
+        state = {m: by[("state", m)] for m in ("poly-cc", "sindy-cc", "sindy-cc+sym") if ("state", m) in by}
         text += (f"\nOn Duffing (`benchmarks/bench_lack_of_fit_duffing.py`, realisations 0–{realisations - 1}) the term "
                  "changes nothing\nwith noise on F (" if all(d["with_term"] == d["plain"] for d in force) else
                  f"\nOn Duffing (`benchmarks/bench_lack_of_fit_duffing.py`, realisations 0–{realisations - 1}), "
-                 "with noise on F (")
+                 "with noise on F\n(")
         text += ", ".join(f"{d['method']} {d['with_term']:.3f}" for d in force)
         text += (" both ways; added in " if all(d["with_term"] == d["plain"] for d in force) else "; added in ")
         text += ", ".join(str(d["fits_with_term"]) for d in force[:-1]) + f" and {force[-1]['fits_with_term']} of\n"
@@ -181,6 +188,19 @@ def _text(rows: list[dict], default: list[dict], duffing: list[dict]) -> str:
                  + ", ".join(f"{m} {_mean(before, 'F25', m, 'inside'):.3f} (mean half-width / sd "
                              f"{_mean(before, 'F25', m, 'half_width'):.3f}, now {_mean(default, 'F25', m, 'half_width'):.3f})"
                              for m in ("poly-cc", "sindy-cc+sym")) + ".\n")
+    sparse = [r for r in rows if "inside_before" in r and r["setting"] == "F25"]
+    if sparse:
+        from ..fitting import SPARSE_LACK_OF_FIT
+
+        m, shrink = sparse[0]["method"], SPARSE_LACK_OF_FIT["shrink"]
+        before_rows = [{**r, "inside": r["inside_before"], "half_width": r["half_width_before"]} for r in sparse]
+        text += (f"\n{m} is a sparse regression's fit: its bands are conditioned on the terms it kept (here "
+                 f"{_span([r['n_active_terms'] for r in sparse], 0)} of {sparse[0]['library_size'] - 1}), and its\n"
+                 f"curves whose test passes now get a coarser term too ({SPARSE_LACK_OF_FIT['bins']} bins, {shrink:g} of the "
+                 "estimate's variance taken out;\nchosen on the tuning half). With noise on F that takes it from "
+                 f"{_mean(before_rows, 'F25', m, 'inside'):.3f} (the term only where the test rejects) to "
+                 f"{_mean(sparse, 'F25', m, 'inside'):.3f} of the grid (mean\nhalf-width / sd "
+                 f"{_mean(before_rows, 'F25', m, 'half_width'):.3f} to {_mean(sparse, 'F25', m, 'half_width'):.3f}).\n")
     short = [(m, _mean(default, "F25", m, "inside")) for m in ("poly-cc", "sindy-cc+sym")]
     short = [(m, v) for m, v in short if v < 0.9]
     text += "\nStill under-covered: equation-error fits with noise on x"
@@ -191,8 +211,8 @@ def _text(rows: list[dict], default: list[dict], duffing: list[dict]) -> str:
 
 def _previous(rows: list[dict]) -> list[dict]:
     """The rows with the band of the estimate before issue 48's level fix (``--previous``), where they have it."""
-    return [{**r, "inside": r["inside_prev"], "half_width": r["half_width_prev"], "binned_p": r["binned_p_prev"]}
-            for r in rows if "inside_prev" in r]
+    return [{**r, "inside": r["inside_prev"], "half_width": r["half_width_prev"], "binned_p": r["binned_p_prev"],
+             "lof_every_curve": False} for r in rows if "inside_prev" in r]
 
 
 def _gate_level() -> float:
@@ -226,9 +246,16 @@ def zoo_coverage_tables(results_root: str | os.PathLike) -> dict[str, str]:
     if not os.path.exists(path):
         return {}
     rows = _jsonl(path)
+    sparse_path = os.path.join(root, _SPARSE)
+    sparse = _jsonl(sparse_path) if os.path.exists(sparse_path) else []
+    rows = [r for r in rows if r["method"] not in {s["method"] for s in sparse}] + sparse
     default = gated(rows)
     duffing_path = os.path.join(root, _DUFFING)
     duffing = _jsonl(duffing_path) if os.path.exists(duffing_path) else []
+    newer_path = os.path.join(root, _DUFFING_SPARSE)
+    newer = _jsonl(newer_path) if os.path.exists(newer_path) else []
+    ran = {(d["setting"], d["method"]) for d in newer}
+    duffing = [d for d in duffing if (d["setting"], d["method"]) not in ran] + newer
     return {"zoo-coverage-term": coverage_table(default, _ALL_METHODS) + "\n",
             "zoo-coverage-plain": coverage_table(default, _ALL_METHODS, key="inside_plain") + "\n",
             "zoo-coverage-text": _text(rows, default, duffing)}

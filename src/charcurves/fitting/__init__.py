@@ -93,8 +93,10 @@ from ._residual_tests import input_correlation as input_correlation
 from ._residual_tests import whiteness as whiteness
 from ._lack_of_fit import LACK_OF_FIT_BINS as LACK_OF_FIT_BINS
 from ._lack_of_fit import LACK_OF_FIT_LEVEL as LACK_OF_FIT_LEVEL
+from ._lack_of_fit import SPARSE_LACK_OF_FIT as SPARSE_LACK_OF_FIT
 from ._lack_of_fit import apply_lack_of_fit as apply_lack_of_fit
 from ._lack_of_fit import lack_of_fit_bias as lack_of_fit_bias
+from ._lack_of_fit import sparse_fit as sparse_fit
 from ._self_check import RESIDUAL_LEVEL as RESIDUAL_LEVEL
 from ._self_check import RESIDUAL_MIN_EFFECT as RESIDUAL_MIN_EFFECT
 from ._self_check import residual_check as residual_check
