@@ -162,6 +162,10 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
             layout.append((s, k))
     deadline = time.monotonic() + float(time_budget)
     probe = np.vstack([np.zeros(U), np.eye(U)])  # unknowns at 0 and at unit steps
+    zeros = np.zeros(U + 1)  # the symbols a right-hand side does not set (read, never written)
+    # every built-in template is affine in the unknowns: one Newton step is then exact, and the
+    # second one (a residual evaluation per right-hand side, half the cost) only confirms it
+    newton_steps = 1 if _affine_in(template, eqs, unknowns) else 2
 
     def top_derivatives(t: float, y: np.ndarray) -> np.ndarray:
         base = {"t": np.full(U + 1, t)}
@@ -171,11 +175,11 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
         for (s, k), val in zip(layout, y):
             base[s if k == 0 else f"{s}__d{k}"] = np.full(U + 1, val)
         d = np.zeros(U)
-        for _ in range(2):  # affine templates: exact after the first step
+        for _ in range(newton_steps):  # affine templates: exact after the first step
             vals = dict(base)
             for j, name in enumerate(unknowns):
                 vals[name] = d[j] + probe[:, j]
-            R = residuals({n: vals.get(n, np.zeros(U + 1)) for n in names})
+            R = residuals({n: vals.get(n, zeros) for n in names})
             J = (R[:, 1:] - R[:, :1])
             try:
                 step = np.linalg.solve(J, -R[:, 0])
@@ -231,6 +235,25 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
     return SimulationResult(T, X, V, status, message, t_end, time.perf_counter() - t0,
                             details={"states": states, "solved_for": [n.replace("__d1", "'").replace("__d2", "''")
                                                                       for n in unknowns]})
+
+
+def _affine_in(template, eqs, unknowns) -> bool:
+    """True when every equation's residual is affine in the unknown top derivatives: no curve
+    argument holds one, and the curves' coefficients and the known, input and scalar-signal parts
+    have a zero second derivative in each pair of them (sympy; what it cannot prove counts as not
+    affine)."""
+    import sympy as sp
+
+    names = set(unknowns)
+    for eq in template.equations:
+        if any(names & {str(v) for v in sp.sympify(template.argument_exprs[n]).free_symbols} for n in eq.curves):
+            return False
+        for e in (eq.known, eq.input, *eq.curves.values(), *eq.scalars.values()):
+            expr = sp.sympify(e)
+            u = [v for v in expr.free_symbols if str(v) in names]  # the template's own symbols (assumptions)
+            if any(sp.diff(expr, a, b) != 0 for i, a in enumerate(u) for b in u[i:]):
+                return False
+    return bool(eqs)
 
 
 class _Stop(Exception):
