@@ -147,12 +147,12 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
         def full(v):  # (m,) values; np.broadcast_to costs more than the call itself on a vector already (m,)
             return v if isinstance(v, np.ndarray) and v.shape == (m,) else np.broadcast_to(v, (m,))
 
-        for e, q in enumerate(eqs):
-            r = full(q["known"](*args)) - gain * full(q["input"](*args)) + q["offset"]
+        for e, q in enumerate(eqs):  # constant pieces stay scalars: numpy broadcasts them to the same numbers
+            r = q["known"](*args) - gain * q["input"](*args) + q["offset"]
             for curve, arg, coef in q["curves"]:
-                r = r + full(coef(*args)) * curve(full(arg(*args)))
+                r = r + coef(*args) * curve(full(arg(*args)))
             for value, sig in q["scalars"]:
-                r = r + value * full(sig(*args))
+                r = r + value * sig(*args)
             out[e] = r
         return out
 
@@ -167,13 +167,13 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
     # second one (a residual evaluation per right-hand side, half the cost) only confirms it
     newton_steps = 1 if _affine_in(template, eqs, unknowns) else 2
 
+    base_names = ["t", *template.forces, *(s if k == 0 else f"{s}__d{k}" for s, k in layout)]
+
     def top_derivatives(t: float, y: np.ndarray) -> np.ndarray:
-        base = {"t": np.full(U + 1, t)}
         F = force_at(t)
-        for f in template.forces:
-            base[f] = np.full(U + 1, F[f])
-        for (s, k), val in zip(layout, y):
-            base[s if k == 0 else f"{s}__d{k}"] = np.full(U + 1, val)
+        # each known value repeated for the U + 1 probes: the rows of one array, built in one call
+        rows = np.repeat(np.array([t, *(F[f] for f in template.forces), *y], dtype=float)[:, None], U + 1, axis=1)
+        base = dict(zip(base_names, rows))
         d = np.zeros(U)
         for _ in range(newton_steps):  # affine templates: exact after the first step
             vals = dict(base)
