@@ -336,7 +336,8 @@ class BasisFittedCurve(FittedCurve):
         z = np.asarray(z, dtype=float)
         out = np.zeros_like(z)
         for c, f in zip(self.coefficients, self._funcs):
-            out = out + c * np.broadcast_to(f(z), z.shape)
+            fz = f(z)  # broadcast only what needs it (a constant term): a free run calls this per stage
+            out = out + c * (fz if np.shape(fz) == z.shape else np.broadcast_to(fz, z.shape))
         return out
 
     def float_function(self):

@@ -147,12 +147,12 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
         def full(v):  # (m,) values; np.broadcast_to costs more than the call itself on a vector already (m,)
             return v if isinstance(v, np.ndarray) and v.shape == (m,) else np.broadcast_to(v, (m,))
 
-        for e, q in enumerate(eqs):
-            r = full(q["known"](*args)) - gain * full(q["input"](*args)) + q["offset"]
+        for e, q in enumerate(eqs):  # constant pieces stay scalars: numpy broadcasts them to the same numbers
+            r = q["known"](*args) - gain * q["input"](*args) + q["offset"]
             for curve, arg, coef in q["curves"]:
-                r = r + full(coef(*args)) * curve(full(arg(*args)))
+                r = r + coef(*args) * curve(full(arg(*args)))
             for value, sig in q["scalars"]:
-                r = r + value * full(sig(*args))
+                r = r + value * sig(*args)
             out[e] = r
         return out
 
@@ -162,20 +162,24 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
             layout.append((s, k))
     deadline = time.monotonic() + float(time_budget)
     probe = np.vstack([np.zeros(U), np.eye(U)])  # unknowns at 0 and at unit steps
+    zeros = np.zeros(U + 1)  # the symbols a right-hand side does not set (read, never written)
+    # every built-in template is affine in the unknowns: one Newton step is then exact, and the
+    # second one (a residual evaluation per right-hand side, half the cost) only confirms it
+    newton_steps = 1 if _affine_in(template, eqs, unknowns) else 2
+
+    base_names = ["t", *template.forces, *(s if k == 0 else f"{s}__d{k}" for s, k in layout)]
 
     def top_derivatives(t: float, y: np.ndarray) -> np.ndarray:
-        base = {"t": np.full(U + 1, t)}
         F = force_at(t)
-        for f in template.forces:
-            base[f] = np.full(U + 1, F[f])
-        for (s, k), val in zip(layout, y):
-            base[s if k == 0 else f"{s}__d{k}"] = np.full(U + 1, val)
+        # each known value repeated for the U + 1 probes: the rows of one array, built in one call
+        rows = np.repeat(np.array([t, *(F[f] for f in template.forces), *y], dtype=float)[:, None], U + 1, axis=1)
+        base = dict(zip(base_names, rows))
         d = np.zeros(U)
-        for _ in range(2):  # affine templates: exact after the first step
+        for _ in range(newton_steps):  # affine templates: exact after the first step
             vals = dict(base)
             for j, name in enumerate(unknowns):
                 vals[name] = d[j] + probe[:, j]
-            R = residuals({n: vals.get(n, np.zeros(U + 1)) for n in names})
+            R = residuals({n: vals.get(n, zeros) for n in names})
             J = (R[:, 1:] - R[:, :1])
             try:
                 step = np.linalg.solve(J, -R[:, 0])
@@ -231,6 +235,25 @@ def simulate_template_model(model, t_eval, x0, v0, forcing, *, method: str = "LS
     return SimulationResult(T, X, V, status, message, t_end, time.perf_counter() - t0,
                             details={"states": states, "solved_for": [n.replace("__d1", "'").replace("__d2", "''")
                                                                       for n in unknowns]})
+
+
+def _affine_in(template, eqs, unknowns) -> bool:
+    """True when every equation's residual is affine in the unknown top derivatives: no curve
+    argument holds one, and the curves' coefficients and the known, input and scalar-signal parts
+    have a zero second derivative in each pair of them (sympy; what it cannot prove counts as not
+    affine)."""
+    import sympy as sp
+
+    names = set(unknowns)
+    for eq in template.equations:
+        if any(names & {str(v) for v in sp.sympify(template.argument_exprs[n]).free_symbols} for n in eq.curves):
+            return False
+        for e in (eq.known, eq.input, *eq.curves.values(), *eq.scalars.values()):
+            expr = sp.sympify(e)
+            u = [v for v in expr.free_symbols if str(v) in names]  # the template's own symbols (assumptions)
+            if any(sp.diff(expr, a, b) != 0 for i, a in enumerate(u) for b in u[i:]):
+                return False
+    return bool(eqs)
 
 
 class _Stop(Exception):
