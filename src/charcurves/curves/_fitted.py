@@ -328,8 +328,7 @@ class BasisFittedCurve(FittedCurve):
     def pinned_at_zero(self) -> bool:
         return self._pinned
 
-    def monomial_powers(self) -> tuple[int, ...] | None:
-        """The power of ``z`` of each basis function where all are plain monomials (``1``, ``z``, ``z**k``), else None."""
+    def monomial_powers(self) -> tuple[int, ...] | None:  # each basis function's power of z if all are monomials
         return self._powers
 
     def raw(self, z):
