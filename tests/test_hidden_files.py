@@ -343,3 +343,44 @@ def test_validate_of_a_hidden_model_refuses_what_it_cannot_honour(tmp_path, caps
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err
     assert main(["validate", str(tmp_path / "m"), str(tmp_path / "a.csv"), "--rows", "0:81"]) == 0
+
+
+def test_validate_start_option_picks_where_a_hidden_free_run_starts(tmp_path, capsys):
+    """``validate --start``: the default window, the former start (first samples) or the training record's
+    fitted state; each prints its start in words and the RMSE of that free run (as
+    ``free_run_rmse(record, start=...)``), into validation.json too. With --init-window, or on a model
+    without hidden states, it is a one-line usage error."""
+    import charcurves as cc
+    from charcurves.cli import main
+
+    record, model = _tank_fit()
+    model.save(tmp_path / "m")
+    record.to_csv(tmp_path / "a.csv")
+    seen = {}
+    for start in ("window", "first-samples", "fitted"):
+        capsys.readouterr()
+        assert main(["validate", str(tmp_path / "m"), str(tmp_path / "a.csv"), "--start", start,
+                     "--out", str(tmp_path / start)]) == 0
+        lines = capsys.readouterr().out.splitlines()
+        expected = model.free_run_rmse(record, start=start)
+        assert model.start_description(start, len(record.t)) in lines[0]
+        assert lines[1] == f"  x2: RMSE {expected['x2']:.5g}"
+        doc = json.loads((tmp_path / start / "validation.json").read_text())
+        assert doc["rmse"]["x2"] == pytest.approx(expected["x2"], rel=1e-12)
+        seen[start] = expected["x2"]
+    assert len({round(v, 12) for v in seen.values()}) == 3  # three different starts, three different runs
+    capsys.readouterr()
+    assert main(["validate", str(tmp_path / "m"), str(tmp_path / "a.csv"), "--start", "fitted",
+                 "--init-window", "20"]) == 2
+    assert "--start and --init-window both say where the free run starts; give one" in capsys.readouterr().err
+    plain = cc.fit(get_duffing_record(), method="parametric", basis="f1=z; f2=z, z**3")
+    plain.save(tmp_path / "sep")
+    get_duffing_record().to_csv(tmp_path / "d.csv")
+    assert main(["validate", str(tmp_path / "sep"), str(tmp_path / "d.csv"), "--start", "fitted"]) == 2
+    assert "--start applies to a model with hidden states" in capsys.readouterr().err
+
+
+def get_duffing_record():
+    from charcurves.systems import get_system
+
+    return get_system("duffing").simulate(t_end=10.0, n_points=251)

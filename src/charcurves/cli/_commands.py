@@ -96,6 +96,9 @@ def cmd_validate(a) -> int:
         check_out_dir(a.out)  # before the free runs: a file there must not cost them (it was found after 100 s)
     if is_hidden_model(a.model):
         return validate_hidden(a)
+    if getattr(a, "start", None) is not None:
+        raise UsageError("--start applies to a model with hidden states; this model's free runs start from the "
+                         "state fitted to the first 128 samples (or --init-window N)")
     out = validate_cli(a.model, a.csv, rows=a.rows, time_col=time_column(a.time_col), x_col=a.x_col,
                        force_col=a.force_col, sample_rate=a.sample_rate, hold=a.hold, substeps=a.substeps,
                        out_dir=a.out, init_window=a.init_window)

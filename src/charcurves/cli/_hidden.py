@@ -142,10 +142,13 @@ def validate_hidden(a) -> int:
     record = _read_record(a.csv, model.info["measured"], model.structure.forces, a.time_col, span)
     if len(record.t) < 16:
         raise UsageError(f"the span has {len(record.t)} rows; validate needs at least 16 (widen --rows)")
-    if a.init_window is None:  # the default start: the state fitted to the first samples, every sample counted
-        initial = model.start_values(record)
+    start = getattr(a, "start", None)
+    if start is not None and a.init_window is not None:
+        raise UsageError("--start and --init-window both say where the free run starts; give one")
+    if a.init_window is None:  # the state fitted to the first samples by default, every sample counted
+        initial = model.start_values(record, start or "window")
         rmse, counted = model.free_run_rmse(record, initial=initial), [0, len(record.t)]
-        how = model.start_description("window", len(record.t))
+        how = model.start_description(start or "window", len(record.t))
     else:
         from ..fitting import window_free_run_error
 

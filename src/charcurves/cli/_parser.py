@@ -205,6 +205,10 @@ def build_parser(version: str) -> argparse.ArgumentParser:
                    help="samples at the start of each span that only fit the initial state (velocity included); "
                         "the RMSE is counted after them, as the nonlinear benchmarks do (default: the state fitted "
                         "to the first 128 samples, the RMSE over all)")
+    v.add_argument("--start", default=None, choices=("window", "first-samples", "fitted"),
+                   help="a model with hidden states: where its free run starts (default window: the whole state "
+                        "fitted to the first 128 samples; first-samples: the measured states from the first 8 "
+                        "samples, hidden ones at their fitted values; fitted: the training record's state)")
     v.add_argument("--out", default=None, help="directory for validation.json and validation.png")
 
     d = sub.add_parser("demo", help="simulate Duffing at 20 dB, fit NN-CC+sym, write results")
