@@ -139,6 +139,12 @@ def run(realisations: int, bootstrap: int, bootstrap_records: int, methods, sett
     return rows
 
 
+def rows_json(rows) -> str:
+    """``rows`` as a JSON list with one compact row per line (1.4 MB for 1 700 rows, where an indented
+    file took 2.3 MB), so that a diff shows the realisations that changed."""
+    return "[\n" + ",\n".join(json.dumps(r, separators=(",", ":")) for r in rows) + "\n]\n"
+
+
 def _with_kind(post, kind):
     """The same fit's posterior with another covariance."""
     return post.with_kind(kind)
@@ -246,7 +252,7 @@ def main(argv=None):
             ran = {(r["setting"], r["method"]) for r in rows}
             rows = [r for r in json.load(fh) if (r["setting"], r["method"]) not in ran] + rows
     with open(os.path.join(a.out, "coverage.json"), "w", encoding="utf-8") as fh:
-        json.dump(rows, fh, indent=1)
+        fh.write(rows_json(rows))
     text = table(rows)
     print("\n".join(bias_lines(rows) + simultaneous_lines(rows)))
     with open(os.path.join(a.out, "coverage.md"), "w", encoding="utf-8") as fh:

@@ -180,10 +180,11 @@ def test_a_sparse_fit_gets_a_band_for_the_bias_below_the_test():
         hw_new.append(float(np.mean(post.curve_sd("f1", z)[1])))
     assert np.mean(old) < 0.75  # measured 0.711: the truth lay outside the old band on 29 % of the grid
     assert np.mean(new) > 0.9  # measured 0.924
-    # and not by an unbounded band: about twice the plain width, 2 % of the damper's spread (measured 0.021)
+    # and not by an unbounded band: twice the plain width (measured 2.09: the plain band alone is 1), a
+    # half-width of 2 % of the damper's spread (measured 0.0208), each within 15 % of the measurement
     ratio = np.mean(hw_new) / np.mean(hw_plain)
-    assert 1.2 < ratio < 3.0
-    assert 1.96 * np.mean(hw_new) / np.std(f) < 0.03
+    assert 1.8 < ratio < 2.4, ratio
+    assert 0.018 < 1.96 * np.mean(hw_new) / np.std(f) < 0.024
 
 
 def test_a_well_specified_sparse_fit_is_widened_little():

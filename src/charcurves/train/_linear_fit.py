@@ -318,7 +318,7 @@ def _sparse_fit(template, reps, sparse, D, cols, owners, rows, info, method):
     target = D["y"][rows]
     # the library's own map (z / max|z|, SparseLibrary.scaling) and the target over its RMS: the coefficients
     # the threshold, nu and tol see are numbers relative to the target, whatever the record's units
-    s = float(np.sqrt(np.mean(target**2))) if getattr(first, "rescaling", "none") != "none" else 1.0
+    s = float(np.sqrt(np.mean(target**2))) if first.rescaling != "none" else 1.0
     s = s if np.isfinite(s) and s > 0 else 1.0
     X[:, -1] = X[:, -1] / s
     target = target / s
